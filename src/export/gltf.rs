@@ -1,0 +1,1 @@
+//! GLTF writer. (Being written.)

@@ -1,0 +1,1 @@
+//! OBJ writer. (Being written.)

@@ -1,0 +1,1 @@
+//! PLY writer. (Being written.)

@@ -1,0 +1,10 @@
+//! OBJ reader. (Being written.)
+
+use super::{ImportLimits, ParseError, Problem, Soup};
+
+/// Parses a OBJ file.
+pub(crate) fn parse(_bytes: &[u8], _limits: &ImportLimits) -> Result<Soup, ParseError> {
+    Err(ParseError::whole(Problem::Unsupported {
+        what: "OBJ reading is not implemented yet".into(),
+    }))
+}

@@ -1,0 +1,28 @@
+//! # ellip — meshes as a few dozen ellipsoidal regions
+//!
+//! `ellip` turns a dense triangle mesh into a small analytic representation: a set of
+//! ellipsoidal surface regions and the boundary curves where they meet, after
+//! P. D. Simari and K. Singh, *Extraction and remeshing of ellipsoidal representations from
+//! mesh data*, Graphics Interface 2005.
+//!
+//! The crate is organised by pipeline stage; see `spec/architecture.md` for the module
+//! graph and the invariants each stage keeps.
+//!
+//! | stage | module | what it does |
+//! |---|---|---|
+//! | import | [`import`] | reads OBJ, glTF/GLB, PLY, STL, OFF into a repaired [`Mesh`] |
+//! | analyse | [`mesh`] | topology, normals, areas, volume, genus, [`mesh::curvature`] |
+//! | export | [`export`] | writes OBJ, glTF/GLB, PLY atomically |
+//! | fixtures | [`synth`] | known shapes and blobs of known ellipsoids, for tests |
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod export;
+pub mod import;
+pub mod mesh;
+pub mod rng;
+pub mod synth;
+
+mod atomic;
+
+pub use mesh::{Aabb, Mesh, MeshError};

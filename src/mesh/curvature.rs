@@ -1,0 +1,1 @@
+//! Mean curvature per vertex. (Being written.)

@@ -1,0 +1,515 @@
+//! Connectivity of a triangle mesh, computed once when the mesh is built.
+//!
+//! Terms, used the same way across ellip:
+//! - the *edge* `i` of face `f` runs from corner `i` to corner `i + 1 (mod 3)`;
+//! - a *manifold* edge has exactly two faces, a *border* edge one, a *non-manifold* edge
+//!   three or more. Faces are adjacent only across manifold edges: a non-manifold edge is kept
+//!   as a border between all its faces;
+//! - a *component* is a maximal set of faces connected through manifold edges;
+//! - a vertex is *non-manifold* when its faces form more than one fan.
+
+use std::collections::VecDeque;
+
+/// Marks "no face" in the adjacency table.
+const NONE: u32 = u32::MAX;
+
+/// Bits of the per-face edge flags: bit `i` (0..3) set when this half-edge is the one that
+/// represents its edge (each edge is counted once); bit `3 + i` set when edge `i` is a border.
+const CANONICAL: u8 = 0b000_111;
+const BORDER_SHIFT: u8 = 3;
+
+/// Connectivity of a mesh. Built by [`Mesh::new`](super::Mesh::new).
+#[derive(Debug, Clone)]
+pub struct Topology {
+    vertex_face_offsets: Vec<u32>,
+    vertex_faces: Vec<u32>,
+    neighbors: Vec<[u32; 3]>,
+    edge_flags: Vec<u8>,
+    edge_count: usize,
+    border_edge_count: usize,
+    nonmanifold_edge_count: usize,
+    inconsistent_edge_count: usize,
+    nonmanifold_vertex_count: usize,
+    referenced_vertex_count: usize,
+    face_component: Vec<u32>,
+    component_count: usize,
+    orientable: bool,
+    boundary_loops: Vec<Vec<u32>>,
+}
+
+impl Topology {
+    pub(crate) fn build(vertex_count: usize, faces: &[[u32; 3]]) -> Topology {
+        let (vertex_face_offsets, vertex_faces) = build_vertex_faces(vertex_count, faces);
+        let mut t = Topology {
+            vertex_face_offsets,
+            vertex_faces,
+            neighbors: vec![[NONE; 3]; faces.len()],
+            edge_flags: vec![0; faces.len()],
+            edge_count: 0,
+            border_edge_count: 0,
+            nonmanifold_edge_count: 0,
+            inconsistent_edge_count: 0,
+            nonmanifold_vertex_count: 0,
+            referenced_vertex_count: 0,
+            face_component: Vec::new(),
+            component_count: 0,
+            orientable: true,
+            boundary_loops: Vec::new(),
+        };
+        t.link_edges(faces);
+        t.count_vertices(faces);
+        t.label_components(faces);
+        t.boundary_loops = t.trace_boundary_loops(faces);
+        t
+    }
+
+    /// Classifies every edge and links faces across manifold edges.
+    fn link_edges(&mut self, faces: &[[u32; 3]]) {
+        for (f, face) in faces.iter().enumerate() {
+            for i in 0..3 {
+                let (a, b) = (face[i], face[(i + 1) % 3]);
+                let mut incident = 1usize;
+                let mut lowest = f;
+                let mut other = NONE;
+                let mut same_direction = false;
+                for &g in self.faces_around(a) {
+                    let g = g as usize;
+                    if g == f {
+                        continue;
+                    }
+                    if let Some(j) = local_edge(&faces[g], a, b) {
+                        incident += 1;
+                        lowest = lowest.min(g);
+                        other = g as u32;
+                        same_direction = faces[g][j] == a;
+                    }
+                }
+                if incident == 2 {
+                    self.neighbors[f][i] = other;
+                }
+                if lowest == f {
+                    self.edge_flags[f] |= 1 << i;
+                    self.edge_count += 1;
+                    match incident {
+                        1 => self.border_edge_count += 1,
+                        2 => self.inconsistent_edge_count += usize::from(same_direction),
+                        _ => self.nonmanifold_edge_count += 1,
+                    }
+                }
+                if incident == 1 {
+                    self.edge_flags[f] |= 1 << (BORDER_SHIFT + i as u8);
+                }
+            }
+        }
+    }
+
+    /// Counts referenced and non-manifold vertices (more than one fan of faces).
+    fn count_vertices(&mut self, faces: &[[u32; 3]]) {
+        let mut seen: Vec<bool> = Vec::new();
+        let mut stack: Vec<usize> = Vec::new();
+        let (mut referenced, mut nonmanifold) = (0, 0);
+        for v in 0..self.vertex_face_offsets.len() - 1 {
+            let around = self.faces_around(v as u32);
+            if around.is_empty() {
+                continue;
+            }
+            referenced += 1;
+            seen.clear();
+            seen.resize(around.len(), false);
+            let mut fans = 0;
+            for start in 0..around.len() {
+                if seen[start] {
+                    continue;
+                }
+                fans += 1;
+                seen[start] = true;
+                stack.push(start);
+                while let Some(k) = stack.pop() {
+                    let f = around[k] as usize;
+                    let c = corner_of(&faces[f], v as u32);
+                    // The two edges of f that touch v: c→c+1 and c+2→c.
+                    for edge in [c, (c + 2) % 3] {
+                        let g = self.neighbors[f][edge];
+                        if g == NONE {
+                            continue;
+                        }
+                        if let Some(m) = around.iter().position(|&x| x == g) {
+                            if !seen[m] {
+                                seen[m] = true;
+                                stack.push(m);
+                            }
+                        }
+                    }
+                }
+            }
+            if fans > 1 {
+                nonmanifold += 1;
+            }
+        }
+        self.referenced_vertex_count = referenced;
+        self.nonmanifold_vertex_count = nonmanifold;
+    }
+
+    /// Labels edge-connected components and checks whether each can be oriented consistently.
+    fn label_components(&mut self, faces: &[[u32; 3]]) {
+        let mut component = vec![NONE; faces.len()];
+        // Whether a face would have to be flipped to agree with its component's first face.
+        let mut flipped = vec![false; faces.len()];
+        let mut queue = VecDeque::new();
+        let mut count = 0u32;
+        for seed in 0..faces.len() {
+            if component[seed] != NONE {
+                continue;
+            }
+            component[seed] = count;
+            queue.push_back(seed);
+            while let Some(f) = queue.pop_front() {
+                for i in 0..3 {
+                    let g = self.neighbors[f][i];
+                    if g == NONE {
+                        continue;
+                    }
+                    let g = g as usize;
+                    let (a, b) = (faces[f][i], faces[f][(i + 1) % 3]);
+                    let j = local_edge(&faces[g], a, b).expect("neighbours share the edge");
+                    let agrees = faces[g][j] == b; // g runs the edge b→a
+                    let want = flipped[f] ^ !agrees;
+                    if component[g] == NONE {
+                        component[g] = count;
+                        flipped[g] = want;
+                        queue.push_back(g);
+                    } else if flipped[g] != want {
+                        self.orientable = false;
+                    }
+                }
+            }
+            count += 1;
+        }
+        self.face_component = component;
+        self.component_count = count as usize;
+    }
+
+    /// Walks the border edges into closed loops of vertices. Each loop follows the direction of
+    /// its faces' edges where they agree, so the region's faces lie on its left.
+    fn trace_boundary_loops(&self, faces: &[[u32; 3]]) -> Vec<Vec<u32>> {
+        let n = self.vertex_face_offsets.len() - 1;
+        // Border half-edges, and for each vertex the ones that touch it.
+        let mut edges: Vec<[u32; 2]> = Vec::with_capacity(self.border_edge_count);
+        for (f, face) in faces.iter().enumerate() {
+            for i in 0..3 {
+                if self.is_border_edge(f, i) {
+                    edges.push([face[i], face[(i + 1) % 3]]);
+                }
+            }
+        }
+        let mut offsets = vec![0u32; n + 1];
+        for e in &edges {
+            offsets[e[0] as usize + 1] += 1;
+            offsets[e[1] as usize + 1] += 1;
+        }
+        for v in 0..n {
+            offsets[v + 1] += offsets[v];
+        }
+        let mut cursor = offsets.clone();
+        let mut touching = vec![0u32; edges.len() * 2];
+        for (k, e) in edges.iter().enumerate() {
+            for &v in e {
+                touching[cursor[v as usize] as usize] = k as u32;
+                cursor[v as usize] += 1;
+            }
+        }
+        let mut used = vec![false; edges.len()];
+        let mut loops = Vec::new();
+        for start in 0..edges.len() {
+            if used[start] {
+                continue;
+            }
+            used[start] = true;
+            let origin = edges[start][0];
+            let mut current = edges[start][1];
+            let mut chain = vec![origin];
+            while current != origin {
+                chain.push(current);
+                let around = &touching
+                    [offsets[current as usize] as usize..offsets[current as usize + 1] as usize];
+                // Prefer an edge leaving `current` in its faces' direction.
+                let next = around
+                    .iter()
+                    .copied()
+                    .filter(|&k| !used[k as usize])
+                    .min_by_key(|&k| edges[k as usize][0] != current);
+                let Some(k) = next else { break };
+                used[k as usize] = true;
+                let [a, b] = edges[k as usize];
+                current = if a == current { b } else { a };
+            }
+            loops.push(chain);
+        }
+        loops
+    }
+
+    /// Faces incident to vertex `v`, in increasing order.
+    pub fn faces_around(&self, v: u32) -> &[u32] {
+        let lo = self.vertex_face_offsets[v as usize] as usize;
+        let hi = self.vertex_face_offsets[v as usize + 1] as usize;
+        &self.vertex_faces[lo..hi]
+    }
+
+    /// The face across edge `i` of face `f`, if that edge is manifold.
+    pub fn neighbor(&self, f: usize, i: usize) -> Option<u32> {
+        let g = self.neighbors[f][i];
+        (g != NONE).then_some(g)
+    }
+
+    /// The faces across the three edges of face `f` (manifold edges only).
+    pub fn neighbors(&self, f: usize) -> impl Iterator<Item = u32> + '_ {
+        self.neighbors[f].iter().copied().filter(|&g| g != NONE)
+    }
+
+    /// Whether edge `i` of face `f` has no other face.
+    pub fn is_border_edge(&self, f: usize, i: usize) -> bool {
+        self.edge_flags[f] & (1 << (BORDER_SHIFT + i as u8)) != 0
+    }
+
+    /// Whether vertex `v` touches an edge that is not manifold (a border or a non-manifold
+    /// edge): there its one-ring is not a closed disc, and curvature estimates do not hold.
+    pub fn is_open_vertex(&self, faces: &[[u32; 3]], v: u32) -> bool {
+        self.faces_around(v).iter().any(|&f| {
+            let f = f as usize;
+            let c = corner_of(&faces[f], v);
+            self.neighbors[f][c] == NONE || self.neighbors[f][(c + 2) % 3] == NONE
+        })
+    }
+
+    /// Calls `visit(a, b)` once for every edge of the mesh.
+    pub fn for_each_edge(&self, faces: &[[u32; 3]], mut visit: impl FnMut(u32, u32)) {
+        for (f, face) in faces.iter().enumerate() {
+            let flags = self.edge_flags[f] & CANONICAL;
+            for i in 0..3 {
+                if flags & (1 << i) != 0 {
+                    visit(face[i], face[(i + 1) % 3]);
+                }
+            }
+        }
+    }
+
+    /// Number of distinct edges.
+    pub fn edge_count(&self) -> usize {
+        self.edge_count
+    }
+
+    /// Edges with exactly one face.
+    pub fn border_edge_count(&self) -> usize {
+        self.border_edge_count
+    }
+
+    /// Edges with three or more faces.
+    pub fn nonmanifold_edge_count(&self) -> usize {
+        self.nonmanifold_edge_count
+    }
+
+    /// Manifold edges whose two faces run them the same way (an orientation flip).
+    pub fn inconsistent_edge_count(&self) -> usize {
+        self.inconsistent_edge_count
+    }
+
+    /// Vertices whose faces form more than one fan.
+    pub fn nonmanifold_vertex_count(&self) -> usize {
+        self.nonmanifold_vertex_count
+    }
+
+    /// Vertices used by at least one face.
+    pub fn referenced_vertex_count(&self) -> usize {
+        self.referenced_vertex_count
+    }
+
+    /// Component label of face `f`, in `0..component_count()`.
+    pub fn component_of(&self, f: usize) -> u32 {
+        self.face_component[f]
+    }
+
+    /// Component label of every face.
+    pub fn face_components(&self) -> &[u32] {
+        &self.face_component
+    }
+
+    /// Number of edge-connected components.
+    pub fn component_count(&self) -> usize {
+        self.component_count
+    }
+
+    /// Loops of border edges, as vertex cycles (the last vertex connects to the first).
+    pub fn boundary_loops(&self) -> &[Vec<u32>] {
+        &self.boundary_loops
+    }
+
+    /// Every edge has exactly two faces (and there is at least one face).
+    pub fn is_closed(&self) -> bool {
+        !self.face_component.is_empty()
+            && self.border_edge_count == 0
+            && self.nonmanifold_edge_count == 0
+    }
+
+    /// No edge has more than two faces and every vertex has a single fan.
+    pub fn is_manifold(&self) -> bool {
+        self.nonmanifold_edge_count == 0 && self.nonmanifold_vertex_count == 0
+    }
+
+    /// Every component can be oriented consistently (no Möbius-like flip).
+    pub fn is_orientable(&self) -> bool {
+        self.orientable
+    }
+
+    /// Consistently oriented: orientable and no manifold edge is run the same way twice.
+    pub fn is_consistently_oriented(&self) -> bool {
+        self.orientable && self.inconsistent_edge_count == 0
+    }
+}
+
+/// Vertex → incident faces, as compressed rows (offsets, then face indices in order).
+fn build_vertex_faces(vertex_count: usize, faces: &[[u32; 3]]) -> (Vec<u32>, Vec<u32>) {
+    let mut offsets = vec![0u32; vertex_count + 1];
+    for face in faces {
+        for &v in face {
+            offsets[v as usize + 1] += 1;
+        }
+    }
+    for v in 0..vertex_count {
+        offsets[v + 1] += offsets[v];
+    }
+    let mut cursor = offsets.clone();
+    let mut incident = vec![0u32; faces.len() * 3];
+    for (f, face) in faces.iter().enumerate() {
+        for &v in face {
+            incident[cursor[v as usize] as usize] = f as u32;
+            cursor[v as usize] += 1;
+        }
+    }
+    (offsets, incident)
+}
+
+/// Index of the edge of `face` joining `a` and `b` (either direction), if it has one.
+fn local_edge(face: &[u32; 3], a: u32, b: u32) -> Option<usize> {
+    (0..3).find(|&j| {
+        let (x, y) = (face[j], face[(j + 1) % 3]);
+        (x == a && y == b) || (x == b && y == a)
+    })
+}
+
+/// Corner of `face` holding vertex `v` (which it must contain).
+fn corner_of(face: &[u32; 3], v: u32) -> usize {
+    face.iter().position(|&x| x == v).expect("face contains vertex")
+}
+
+/// Per-face flags saying which faces to flip so that each component is consistently
+/// oriented, keeping the orientation of each component's lowest-numbered face. Faces in a
+/// non-orientable component are left as the breadth-first walk first reaches them.
+pub(crate) fn orientation_flips(topology: &Topology, faces: &[[u32; 3]]) -> Vec<bool> {
+    let mut visited = vec![false; faces.len()];
+    let mut flip = vec![false; faces.len()];
+    let mut queue = VecDeque::new();
+    for seed in 0..faces.len() {
+        if visited[seed] {
+            continue;
+        }
+        visited[seed] = true;
+        queue.push_back(seed);
+        while let Some(f) = queue.pop_front() {
+            for i in 0..3 {
+                let Some(g) = topology.neighbor(f, i) else {
+                    continue;
+                };
+                let g = g as usize;
+                if visited[g] {
+                    continue;
+                }
+                let (a, b) = (faces[f][i], faces[f][(i + 1) % 3]);
+                let j = local_edge(&faces[g], a, b).expect("neighbours share the edge");
+                let agrees = faces[g][j] == b;
+                visited[g] = true;
+                flip[g] = flip[f] ^ !agrees;
+                queue.push_back(g);
+            }
+        }
+    }
+    flip
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn topo(vertex_count: usize, faces: &[[u32; 3]]) -> Topology {
+        Topology::build(vertex_count, faces)
+    }
+
+    const TETRA: [[u32; 3]; 4] = [[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]];
+
+    #[test]
+    fn closed_tetrahedron() {
+        let t = topo(4, &TETRA);
+        assert_eq!(t.edge_count(), 6);
+        assert!(t.is_closed() && t.is_manifold() && t.is_consistently_oriented());
+        assert_eq!(t.component_count(), 1);
+        assert!(t.boundary_loops().is_empty());
+        for f in 0..4 {
+            assert_eq!(t.neighbors(f).count(), 3);
+        }
+    }
+
+    #[test]
+    fn open_square_has_one_loop_in_face_direction() {
+        // Two triangles of a unit square, counter-clockwise.
+        let faces = [[0, 1, 2], [0, 2, 3]];
+        let t = topo(4, &faces);
+        assert_eq!(t.edge_count(), 5);
+        assert_eq!(t.border_edge_count(), 4);
+        assert!(!t.is_closed() && t.is_manifold());
+        assert_eq!(t.boundary_loops().len(), 1);
+        let l = &t.boundary_loops()[0];
+        assert_eq!(l.len(), 4);
+        // The loop runs 0→1→2→3 (face direction), starting anywhere.
+        let k = l.iter().position(|&v| v == 0).unwrap();
+        let rotated: Vec<u32> = (0..4).map(|i| l[(k + i) % 4]).collect();
+        assert_eq!(rotated, vec![0, 1, 2, 3]);
+    }
+
+    #[test]
+    fn three_faces_on_one_edge_are_not_neighbours() {
+        // Edge 0–1 shared by three triangles.
+        let faces = [[0, 1, 2], [1, 0, 3], [0, 1, 4]];
+        let t = topo(5, &faces);
+        assert_eq!(t.nonmanifold_edge_count(), 1);
+        assert!(!t.is_manifold() && !t.is_closed());
+        assert_eq!(t.component_count(), 3);
+        assert_eq!(t.neighbor(0, 0), None);
+    }
+
+    #[test]
+    fn bowtie_vertex_is_nonmanifold() {
+        // Two triangles meeting only at vertex 0.
+        let faces = [[0, 1, 2], [0, 3, 4]];
+        let t = topo(5, &faces);
+        assert_eq!(t.nonmanifold_vertex_count(), 1);
+        assert_eq!(t.nonmanifold_edge_count(), 0);
+        assert!(!t.is_manifold());
+        assert_eq!(t.component_count(), 2);
+    }
+
+    #[test]
+    fn flipped_face_is_found_and_fixed() {
+        let mut faces = TETRA;
+        faces[3] = [1, 2, 3];
+        let t = topo(4, &faces);
+        assert_eq!(t.inconsistent_edge_count(), 3);
+        assert!(t.is_orientable() && !t.is_consistently_oriented());
+        let flips = orientation_flips(&t, &faces);
+        assert_eq!(flips, vec![false, false, false, true]);
+    }
+
+    #[test]
+    fn unreferenced_vertices_are_not_counted() {
+        let t = topo(10, &TETRA);
+        assert_eq!(t.referenced_vertex_count(), 4);
+    }
+}

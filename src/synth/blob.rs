@@ -1,0 +1,1 @@
+//! Smooth unions of known ellipsoids, meshed by iso-surface extraction. (Being written.)

@@ -1,0 +1,1 @@
+//! Meshes of simple shapes with analytic properties. (Being written.)
