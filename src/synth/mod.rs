@@ -7,3 +7,18 @@
 pub mod blob;
 pub mod fixtures;
 pub mod shapes;
+
+use glam::{DQuat, DVec3};
+use serde::{Deserialize, Serialize};
+
+/// An ellipsoid as the synthetic shapes and the fixtures' truth files describe it: the unit
+/// sphere scaled by `radii` along x, y, z, then rotated by `rotation`, then moved to `center`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct EllipsoidSpec {
+    /// Centre.
+    pub center: DVec3,
+    /// Orientation (unit quaternion, stored x, y, z, w).
+    pub rotation: DQuat,
+    /// Semi-axis lengths, all positive.
+    pub radii: DVec3,
+}
