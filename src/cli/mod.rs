@@ -1,0 +1,124 @@
+//! Argument definitions and dispatch for the `ellip` binary.
+
+mod convert;
+mod fixtures;
+mod info;
+
+use clap::{Args, Parser, Subcommand};
+use ellip::import::{ImportOptions, Weld};
+use std::path::PathBuf;
+
+/// The error type of every subcommand: shown to the user as one line.
+pub type CliError = Box<dyn std::error::Error + Send + Sync>;
+
+const EXAMPLES: &str = "\
+Examples:
+  ellip info fixtures/meshes/blob1.obj          describe a mesh: size, topology, curvature, repairs
+  ellip info bunny.ply --json                   the same as JSON, for scripts
+  ellip convert scan.stl scan.glb               convert between OBJ, glTF/GLB, PLY, STL and OFF
+  ellip convert part.obj part.ply --weld 1e-6   join vertices closer than 1e-6 on the way";
+
+/// ellip: dense triangle meshes as a few dozen ellipsoidal regions.
+#[derive(Debug, Parser)]
+#[command(name = "ellip", version, about, after_help = EXAMPLES)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Describe a mesh: counts, topology, bounding box, volume, curvature, repairs made.
+    #[command(after_help = "Example:\n  ellip info fixtures/meshes/torus.obj --json")]
+    Info(info::InfoArgs),
+    /// Convert a mesh between formats, chosen by the files' extensions.
+    ///
+    /// Reads .obj, .gltf, .glb, .ply, .stl and .off; writes .obj, .gltf (+ .bin), .glb and
+    /// .ply. The output is written atomically and never replaces the input.
+    #[command(after_help = "Example:\n  ellip convert fixtures/meshes/torus.obj torus.glb")]
+    Convert(convert::ConvertArgs),
+    /// Regenerate the committed fixture meshes (for developers).
+    #[command(hide = true)]
+    Fixtures(fixtures::FixturesArgs),
+}
+
+/// Options shared by every command that reads a mesh.
+#[derive(Debug, Args)]
+pub struct ReadArgs {
+    /// Join vertices closer than this distance (model units) instead of only exactly equal ones.
+    #[arg(long, value_name = "DISTANCE")]
+    weld: Option<f64>,
+    /// Keep the file's face orientation instead of making it consistent and outward.
+    #[arg(long)]
+    keep_orientation: bool,
+}
+
+impl ReadArgs {
+    fn import_options(&self) -> Result<ImportOptions, CliError> {
+        let weld = match self.weld {
+            None => Weld::Exact,
+            Some(d) if d.is_finite() && d >= 0.0 => Weld::Within(d),
+            Some(d) => return Err(format!("--weld must be a distance >= 0, not {d}").into()),
+        };
+        Ok(ImportOptions {
+            weld,
+            keep_orientation: self.keep_orientation,
+            ..ImportOptions::default()
+        })
+    }
+}
+
+/// Runs one parsed command.
+pub fn run(cli: Cli) -> Result<(), CliError> {
+    match cli.command {
+        Command::Info(args) => info::run(&args),
+        Command::Convert(args) => convert::run(&args),
+        Command::Fixtures(args) => fixtures::run(&args),
+    }
+}
+
+/// Folds a message onto one line.
+pub fn one_line(message: &str) -> String {
+    message.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// A panic is a bug: report it in one line, without a backtrace, and exit 101.
+pub fn install_panic_hook() {
+    std::panic::set_hook(Box::new(|info| {
+        let what = info
+            .payload()
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| info.payload().downcast_ref::<String>().cloned())
+            .unwrap_or_default();
+        let at = info
+            .location()
+            .map(|l| format!(" at {}:{}", l.file(), l.line()))
+            .unwrap_or_default();
+        eprintln!(
+            "ellip: internal error (please report it): {}{at}",
+            one_line(&what)
+        );
+    }));
+}
+
+/// Path shown in messages.
+pub fn shown(path: &std::path::Path) -> String {
+    path.display().to_string()
+}
+
+/// Fails when `output` names the same file as `input`.
+pub fn refuse_overwriting(input: &std::path::Path, output: &PathBuf) -> Result<(), CliError> {
+    let same = match (input.canonicalize(), output.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    if same {
+        return Err(format!(
+            "{}: refusing to overwrite the input; choose another output file",
+            shown(output)
+        )
+        .into());
+    }
+    Ok(())
+}

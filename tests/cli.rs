@@ -1,0 +1,172 @@
+//! The `ellip` binary as users and scripts see it: exit codes, one-line errors, JSON.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn ellip(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_ellip"))
+        .args(args)
+        .output()
+        .expect("the ellip binary runs")
+}
+
+fn fixture(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("fixtures/meshes")
+        .join(name)
+        .to_string_lossy()
+        .into_owned()
+}
+
+fn temp_dir(tag: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("ellip-cli-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// An error is exit code 1 and exactly one line on stderr, never a panic message.
+fn assert_clean_failure(out: &Output, context: &str) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{context}: stderr {stderr}");
+    assert_eq!(
+        stderr.lines().count(),
+        1,
+        "{context}: one line, got {stderr:?}"
+    );
+    assert!(stderr.starts_with("ellip: error: "), "{context}: {stderr}");
+    assert!(!stderr.contains("panicked"), "{context}: {stderr}");
+}
+
+#[test]
+fn info_reports_a_closed_sphere_as_json() {
+    let out = ellip(&["info", &fixture("icosphere.obj"), "--json"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("valid JSON");
+    assert_eq!(v["closed"], true);
+    assert_eq!(v["manifold"], true);
+    assert_eq!(v["genus"], 0);
+    assert_eq!(v["components"], 1);
+    assert_eq!(v["boundary_loops"], 0);
+    // A unit icosphere: volume a little under 4/3 π.
+    let volume = v["volume"].as_f64().unwrap();
+    assert!(
+        (volume - 4.0 / 3.0 * std::f64::consts::PI).abs() < 0.05,
+        "{volume}"
+    );
+    // Mean curvature of a unit sphere is 1.
+    let median = v["curvature"]["median"].as_f64().unwrap();
+    assert!((median - 1.0).abs() < 0.02, "{median}");
+}
+
+#[test]
+fn info_text_names_the_topology() {
+    let out = ellip(&["info", &fixture("torus.obj")]);
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("genus 1"), "{text}");
+}
+
+#[test]
+fn convert_round_trips_through_every_written_format() {
+    let dir = temp_dir("convert");
+    for ext in ["obj", "ply", "glb", "gltf"] {
+        let out_path = dir.join(format!("torus.{ext}"));
+        let out = ellip(&[
+            "convert",
+            &fixture("torus.obj"),
+            out_path.to_str().unwrap(),
+            "-q",
+        ]);
+        assert!(
+            out.status.success(),
+            "{ext}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let back = ellip(&["info", out_path.to_str().unwrap(), "--json"]);
+        assert!(
+            back.status.success(),
+            "{ext}: {}",
+            String::from_utf8_lossy(&back.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&back.stdout).unwrap();
+        assert_eq!(v["genus"], 1, "{ext}");
+        assert_eq!(v["closed"], true, "{ext}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn convert_refuses_to_overwrite_its_input() {
+    let dir = temp_dir("overwrite");
+    let path = dir.join("cube.obj");
+    std::fs::copy(fixture("cube.obj"), &path).unwrap();
+    let before = std::fs::read(&path).unwrap();
+    let p = path.to_str().unwrap();
+    let out = ellip(&["convert", p, p]);
+    assert_clean_failure(&out, "convert onto itself");
+    assert_eq!(std::fs::read(&path).unwrap(), before);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bad_usage_exits_2() {
+    assert_eq!(ellip(&["info"]).status.code(), Some(2));
+    assert_eq!(ellip(&["frobnicate"]).status.code(), Some(2));
+    assert_eq!(ellip(&["convert", "a.obj"]).status.code(), Some(2));
+}
+
+#[test]
+fn help_shows_examples() {
+    let out = ellip(&["--help"]);
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("Examples:") && text.contains("ellip convert"));
+}
+
+#[test]
+fn malformed_files_fail_cleanly() {
+    let dir = temp_dir("malformed");
+    let cases: &[(&str, &[u8])] = &[
+        ("empty.obj", b""),
+        ("empty.ply", b""),
+        ("empty.stl", b""),
+        ("empty.off", b""),
+        ("empty.glb", b""),
+        ("empty.gltf", b""),
+        ("garbage.obj", b"\x00\x01\x02\xff\xfe garbage"),
+        ("garbage.ply", b"\x00\x01\x02\xff\xfe garbage"),
+        ("garbage.stl", b"\x00\x01\x02\xff\xfe garbage"),
+        ("garbage.off", b"\x00\x01\x02\xff\xfe garbage"),
+        ("garbage.glb", b"\x00\x01\x02\xff\xfe garbage"),
+        ("garbage.gltf", b"{ not json"),
+        ("nan.obj", b"v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"),
+        ("range.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n"),
+        ("short.obj", b"v 0 0 0\nv 1 0 0\nf 1 2\n"),
+        (
+            "forged.ply",
+            b"ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n",
+        ),
+        ("forged.stl", b"binary stl header padded to eighty bytes.......................................\xff\xff\xff\xff"),
+        ("truncated.off", b"OFF\n4 4 0\n0 0 0\n1 0 0\n"),
+        ("unknown.xyz", b"1 2 3"),
+        ("missing-file.obj", b""),
+    ];
+    for (name, bytes) in cases {
+        let path = dir.join(name);
+        if *name != "missing-file.obj" {
+            std::fs::write(&path, bytes).unwrap();
+        }
+        let out = ellip(&["info", path.to_str().unwrap()]);
+        assert_clean_failure(&out, name);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            stderr.contains(name),
+            "{name}: the message names the file: {stderr}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
