@@ -1,0 +1,86 @@
+//! Every real mesh in `../shared/meshes` imports with the topology its README documents.
+//! Skips (and says so) when that folder is absent: the meshes are never committed here.
+
+use ellip::import::{read_mesh, ImportOptions};
+use std::path::{Path, PathBuf};
+
+fn shared_meshes() -> Option<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes");
+    if dir.is_dir() {
+        Some(dir)
+    } else {
+        eprintln!("skipped: {} is absent", dir.display());
+        None
+    }
+}
+
+/// (file, closed, manifold, genus, boundary loops), from `../shared/meshes/README.md`.
+const EXPECTED: &[(&str, bool, bool, Option<u64>, usize)] = &[
+    ("hand.obj", true, true, Some(0), 0),
+    ("teddy.obj", true, true, Some(0), 0),
+    ("bunny.obj", true, true, Some(0), 0),
+    ("horse.obj", true, true, Some(0), 0),
+    ("dino.obj", false, false, None, 0),
+    ("duck.obj", true, true, Some(0), 0),
+    ("penguin.obj", true, true, Some(0), 0),
+    ("spot.obj", true, true, Some(0), 0),
+    ("igea_small.obj", true, true, Some(0), 0),
+    ("fandisk.obj", true, true, Some(0), 0),
+    ("rocker_arm.obj", true, true, Some(1), 0),
+    ("demosthenes.obj", false, true, Some(0), 1),
+    ("bunny_scan.obj", false, true, Some(0), 5),
+    ("armadillo.obj", true, true, Some(0), 0),
+    ("koala.obj", true, true, Some(0), 0),
+    ("igea.obj", true, true, Some(0), 0),
+];
+
+#[test]
+fn real_meshes_have_their_documented_topology() {
+    let Some(dir) = shared_meshes() else { return };
+    for &(name, closed, manifold, genus, loops) in EXPECTED {
+        let path = dir.join(name);
+        if !path.exists() {
+            eprintln!("skipped: {name} is absent");
+            continue;
+        }
+        let imported = read_mesh(&path, &ImportOptions::default())
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        let mesh = &imported.mesh;
+        let t = mesh.topology();
+        assert_eq!(t.is_closed(), closed, "{name}: closed");
+        assert_eq!(t.is_manifold(), manifold, "{name}: manifold");
+        assert_eq!(mesh.genus(), genus, "{name}: genus");
+        assert_eq!(t.boundary_loops().len(), loops, "{name}: boundary loops");
+        assert_eq!(t.component_count(), 1, "{name}: components");
+        assert!(t.is_consistently_oriented(), "{name}: orientation");
+        // The files have no degenerate or duplicate faces and no unreferenced vertices.
+        assert_eq!(imported.repairs.degenerate_faces, 0, "{name}");
+        assert_eq!(imported.repairs.duplicate_faces, 0, "{name}");
+        assert_eq!(imported.repairs.unreferenced_vertices, 0, "{name}");
+        if closed {
+            assert!(mesh.volume().unwrap() > 0.0, "{name}: closed meshes end up outward");
+        }
+    }
+}
+
+#[test]
+fn the_inward_horse_is_turned_outward() {
+    let Some(dir) = shared_meshes() else { return };
+    let path = dir.join("horse.obj");
+    if !path.exists() {
+        return;
+    }
+    let imported = read_mesh(&path, &ImportOptions::default()).unwrap();
+    assert_eq!(imported.repairs.reoriented_components, 1);
+    let kept = read_mesh(
+        &path,
+        &ImportOptions {
+            keep_orientation: true,
+            ..ImportOptions::default()
+        },
+    )
+    .unwrap();
+    assert!(kept.mesh.signed_volume() < 0.0);
+    let v = imported.mesh.volume().unwrap();
+    assert!((v + kept.mesh.signed_volume()).abs() < 1e-12 * v.abs().max(1.0));
+}
