@@ -43,8 +43,8 @@ fn real_meshes_have_their_documented_topology() {
             eprintln!("skipped: {name} is absent");
             continue;
         }
-        let imported = read_mesh(&path, &ImportOptions::default())
-            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        let imported =
+            read_mesh(&path, &ImportOptions::default()).unwrap_or_else(|e| panic!("{name}: {e}"));
         let mesh = &imported.mesh;
         let t = mesh.topology();
         assert_eq!(t.is_closed(), closed, "{name}: closed");
@@ -58,7 +58,10 @@ fn real_meshes_have_their_documented_topology() {
         assert_eq!(imported.repairs.duplicate_faces, 0, "{name}");
         assert_eq!(imported.repairs.unreferenced_vertices, 0, "{name}");
         if closed {
-            assert!(mesh.volume().unwrap() > 0.0, "{name}: closed meshes end up outward");
+            assert!(
+                mesh.volume().unwrap() > 0.0,
+                "{name}: closed meshes end up outward"
+            );
         }
     }
 }
