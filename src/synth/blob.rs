@@ -25,7 +25,10 @@
 //! no surface vertex starts next to a grid point: that is what keeps the corner-cutting
 //! triangles from degenerating. Every vertex is then projected onto the exact zero set of `F`
 //! by damped Newton steps along `∇F` (analytic gradient), which puts it on its ellipsoid to
-//! rounding error wherever the blending is inactive.
+//! rounding error wherever the blending is inactive. Where a groove between two ellipsoids is
+//! narrower than a cell the piecewise-linear surface can fold; a few rounds of local
+//! relaxation of the folded faces' corners, each followed by re-projection, remove the folds
+//! (see `unfold`).
 
 use super::EllipsoidSpec;
 use crate::mesh::{Mesh, MeshError};
