@@ -296,8 +296,13 @@ impl<'a> AsciiReader<'a> {
     /// The next word, which must exist.
     fn next_word(&mut self, expected: &'static str) -> Result<&'a [u8], ParseError> {
         self.tokens.next().ok_or_else(|| {
+            // The line a final newline would open holds nothing: report the one before.
+            let line = match self.tokens.bytes.last() {
+                Some(b'\n') => self.tokens.line.saturating_sub(1).max(1),
+                _ => self.tokens.line,
+            };
             ParseError::at(
-                Location::Line(self.tokens.line),
+                Location::Line(line),
                 Problem::Syntax {
                     expected,
                     found: "the end of the file".into(),
@@ -514,6 +519,18 @@ mod tests {
                 Problem::Truncated {
                     needed: 84,
                     available: 40
+                }
+            )
+        );
+        // A final newline does not open a line of its own: the file ends on line 8.
+        let text = ascii(&TETRA[..1]).replace("endsolid tetra\n", "");
+        assert_eq!(
+            problem_at(text.as_bytes()),
+            (
+                Some(Location::Line(8)),
+                Problem::Syntax {
+                    expected: "facet or endsolid",
+                    found: "the end of the file".into()
                 }
             )
         );
