@@ -578,6 +578,10 @@ fn read_face<B: Body>(
 
 /// Skips every record of an element that is not read.
 fn skip_element<B: Body>(body: &mut B, element: &Element<'_>) -> Result<(), ParseError> {
+    if element.properties.is_empty() {
+        // Records of nothing: however many are declared, there is nothing to read.
+        return Ok(());
+    }
     if element.is_fixed_size() && !B::IS_TEXT {
         // The same bytes in a different order: a single skip per property.
         for property in &element.properties {
@@ -1063,6 +1067,16 @@ mod tests {
         let soup = read(&binary(false, header, &values)).unwrap();
         assert_eq!(soup.positions, vec![DVec3::ZERO, DVec3::X, DVec3::Y]);
         assert_eq!(soup.triangles, vec![[2, 1, 0]]);
+    }
+
+    #[test]
+    fn skips_elements_without_properties_at_once() {
+        let header = format!("element nothing 18446744073709551615\n{TRIANGLE_HEADER}");
+        let text =
+            format!("ply\nformat ascii 1.0\n{header}end_header\n0 0 0 1 0 0 0 1 0 3 0 1 2\n");
+        assert_eq!(read(text.as_bytes()).unwrap().triangles, vec![[0, 1, 2]]);
+        let bytes = binary(true, &header, &triangle_values(&[0, 1, 2]));
+        assert_eq!(read(&bytes).unwrap().triangles, vec![[0, 1, 2]]);
     }
 
     #[test]

@@ -14,10 +14,12 @@
 //! endsolid [name]
 //! ```
 //!
-//! possibly several solids in a row, keywords in any case. Many binary files also begin with
-//! `solid`, so a file is read as binary when its length is exactly `84 + 50 × count`, or when
-//! it does not begin with `solid`, or when it does but fails to parse as ASCII and holds bytes
-//! that are not text. Bytes after the last binary facet are ignored with a warning.
+//! possibly several solids in a row, keywords in any case.
+//!
+//! Many binary files also begin with `solid`, so the choice goes: a file whose length is
+//! exactly `84 + 50 × count` is binary; otherwise one that begins with `solid` is ASCII, unless
+//! it fails as ASCII and holds bytes that are not text; any other file is binary unless it is
+//! all text. Bytes after the last binary facet are ignored with a warning.
 //!
 //! STL has no shared vertices: each facet adds three vertices of its own (normals are
 //! ignored), and [`repair`](super::repair) welds them.
@@ -55,7 +57,8 @@ pub(crate) fn parse(bytes: &[u8], limits: &ImportLimits) -> Result<Soup, ParseEr
             }
         });
     }
-    if len < BINARY_HEADER_BYTES && is_text(bytes) {
+    // Text that is not ASCII STL (and not by chance exactly the length of a binary one).
+    if is_text(bytes) {
         return Err(ParseError::whole(Problem::NotThisFormat {
             expected: "STL",
         }));
@@ -474,10 +477,12 @@ mod tests {
     fn reports_empty_and_foreign_files() {
         assert_eq!(problem_at(b""), (None, Problem::Empty));
         assert_eq!(problem_at(b" \r\n\t"), (None, Problem::Empty));
-        assert_eq!(
-            problem_at(b"hello, world\n"),
-            (None, Problem::NotThisFormat { expected: "STL" })
-        );
+        for text in ["hello, world\n".to_string(), "hello, world\n".repeat(20)] {
+            assert_eq!(
+                problem_at(text.as_bytes()),
+                (None, Problem::NotThisFormat { expected: "STL" })
+            );
+        }
         assert_eq!(
             problem_at(b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 zero 0\n"),
             (
