@@ -64,7 +64,7 @@ impl MeshFormat {
             Some(MeshFormat::Glb)
         } else if bytes.starts_with(b"ply") {
             Some(MeshFormat::Ply)
-        } else if bytes.starts_with(b"OFF") || bytes.starts_with(b"COFF") {
+        } else if is_off_keyword(bytes) {
             Some(MeshFormat::Off)
         } else if bytes.starts_with(b"solid") {
             Some(MeshFormat::Stl)
@@ -395,6 +395,20 @@ pub fn read_mesh_bytes(
     })
 }
 
+/// `[ST][C][N][4][n]OFF` as the first token: the OFF header keyword and its variants.
+fn is_off_keyword(bytes: &[u8]) -> bool {
+    let token_len = bytes
+        .iter()
+        .take(8)
+        .position(|b| b.is_ascii_whitespace())
+        .unwrap_or(bytes.len().min(8));
+    let token = &bytes[..token_len];
+    token.ends_with(b"OFF")
+        && token[..token.len() - 3]
+            .iter()
+            .all(|b| b"STCN4n".contains(b))
+}
+
 /// Shortens a token for an error message.
 pub(crate) fn excerpt(bytes: &[u8]) -> String {
     let text = String::from_utf8_lossy(&bytes[..bytes.len().min(40)]);
@@ -411,5 +425,29 @@ pub(crate) fn check_limit(what: &'static str, requested: u64, max: u64) -> Resul
         })
     } else {
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sniffs_formats_by_their_first_bytes() {
+        assert_eq!(MeshFormat::sniff(b"glTF\x02\0\0\0"), Some(MeshFormat::Glb));
+        assert_eq!(MeshFormat::sniff(b"ply\nformat"), Some(MeshFormat::Ply));
+        for off in [
+            &b"OFF\n"[..],
+            b"COFF 1 2 3",
+            b"NOFF\n",
+            b"STCNOFF\n",
+            b"OFF",
+        ] {
+            assert_eq!(MeshFormat::sniff(off), Some(MeshFormat::Off), "{off:?}");
+        }
+        assert_eq!(MeshFormat::sniff(b"solid x"), Some(MeshFormat::Stl));
+        assert_eq!(MeshFormat::sniff(b"OFFSET 1"), None);
+        assert_eq!(MeshFormat::sniff(b"v 1 2 3"), None);
+        assert_eq!(MeshFormat::sniff(b""), None);
     }
 }
