@@ -393,6 +393,18 @@ fn gltf_with_a_data_uri_buffer() {
 }
 
 #[test]
+fn gltf_with_a_byte_order_mark_is_read() {
+    let (mut json, bin) = cube_document();
+    json["buffers"][0]["uri"] = json!(format!(
+        "data:application/gltf-buffer;base64,{}",
+        base64(&bin)
+    ));
+    let mut text = b"\xEF\xBB\xBF".to_vec();
+    text.extend(serde_json::to_vec(&json).unwrap());
+    assert_eq!(import(&text, "bom.gltf").unwrap().mesh.face_count(), 12);
+}
+
+#[test]
 fn gltf_with_an_external_buffer_file() {
     let dir = scratch_dir("external");
     let (mut json, bin) = cube_document();

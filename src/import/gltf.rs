@@ -36,7 +36,8 @@ pub(crate) fn parse(
         let glb = split_glb(bytes)?;
         (glb.json, glb.bin)
     } else {
-        (bytes, None)
+        // A byte-order mark is allowed to be ignored ("JSON encoding"); serde_json rejects it.
+        (bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes), None)
     };
     if json.iter().all(u8::is_ascii_whitespace) {
         return Err(ParseError::whole(Problem::Empty));
@@ -46,13 +47,16 @@ pub(crate) fn parse(
             message: e.to_string(),
         };
         // Lines mean something in a .gltf; in a GLB they would count within the JSON chunk.
-        match (bin.is_none() && !bytes.starts_with(b"glTF"), e.line()) {
-            (true, line) if line > 0 => ParseError::at(Location::Line(line as u64), problem),
+        match e.line() {
+            line if line > 0 && !bytes.starts_with(b"glTF") => {
+                ParseError::at(Location::Line(line as u64), problem)
+            }
             _ => ParseError::whole(problem),
         }
     })?;
     check_position_indices(&root)?;
-    let document = Document::from_json(root).map_err(|e| ParseError::whole(gltf_problem(e)))?;
+    let document =
+        Document::from_json(root).map_err(|e| ParseError::whole(describe_gltf_error(e)))?;
     let mut reader = Reader {
         document: &document,
         bin,
@@ -62,7 +66,7 @@ pub(crate) fn parse(
         soup: Soup::default(),
         skipped: BTreeMap::new(),
     };
-    for (mesh, transform) in mesh_instances(&document)? {
+    for (mesh, transform) in find_mesh_instances(&document)? {
         reader.read_instance(mesh, transform)?;
     }
     let mut soup = reader.soup;
@@ -85,7 +89,7 @@ struct Bin<'a> {
     offset: u64,
 }
 
-/// Splits a GLB container (glTF 2.0 §4.4) into its JSON and first `BIN` chunk, checking the
+/// Splits a GLB container (glTF 2.0, "Binary glTF Layout") into its JSON and first `BIN` chunk, checking the
 /// header and every chunk length against the bytes present.
 fn split_glb(bytes: &[u8]) -> Result<Glb<'_>, ParseError> {
     let available = bytes.len() as u64;
@@ -173,7 +177,7 @@ fn split_glb(bytes: &[u8]) -> Result<Glb<'_>, ParseError> {
                     offset: offset + 8,
                 })
             }
-            // Later BIN chunks and unknown chunk types are ignored, as §4.4.3 asks.
+            // Later BIN chunks and unknown chunk types are ignored, as "Chunks" asks.
             _ => {}
         }
         offset = end;
@@ -210,7 +214,7 @@ fn check_position_indices(root: &gltf::json::Root) -> Result<(), ParseError> {
 }
 
 /// Words a `gltf` crate error for [`Problem::Gltf`], listing at most five validation errors.
-fn gltf_problem(error: gltf::Error) -> Problem {
+fn describe_gltf_error(error: gltf::Error) -> Problem {
     let message = match error {
         gltf::Error::Validation(errors) => {
             let mut listed: Vec<String> = errors
@@ -234,9 +238,9 @@ fn invalid(message: String) -> ParseError {
 }
 
 /// Every mesh the default scene shows, with its node's world transform. Walks the node
-/// hierarchy without recursion and refuses a node reached twice (glTF 2.0 §3.5.3: the
-/// hierarchy is a set of disjoint trees), which also rules out cycles.
-fn mesh_instances(document: &Document) -> Result<Vec<(usize, DMat4)>, ParseError> {
+/// hierarchy without recursion and refuses a node reached twice (glTF 2.0, "Nodes and
+/// Hierarchy": the hierarchy is a set of disjoint trees), which also rules out cycles.
+fn find_mesh_instances(document: &Document) -> Result<Vec<(usize, DMat4)>, ParseError> {
     let Some(scene) = document
         .default_scene()
         .or_else(|| document.scenes().next())
@@ -262,7 +266,7 @@ fn mesh_instances(document: &Document) -> Result<Vec<(usize, DMat4)>, ParseError
                 scene.index()
             )));
         }
-        let world = parent * local_transform(&node)?;
+        let world = parent * read_node_transform(&node)?;
         if !world.is_finite() {
             return Err(invalid(format!(
                 "node {} has a non-finite world transform",
@@ -280,7 +284,7 @@ fn mesh_instances(document: &Document) -> Result<Vec<(usize, DMat4)>, ParseError
 }
 
 /// A node's transform relative to its parent, in f64: its matrix, or T × R × S.
-fn local_transform(node: &gltf::Node) -> Result<DMat4, ParseError> {
+fn read_node_transform(node: &gltf::Node) -> Result<DMat4, ParseError> {
     let widen = |v: &[f32]| -> Vec<f64> { v.iter().map(|&x| f64::from(x)).collect() };
     match node.transform() {
         gltf::scene::Transform::Matrix { matrix } => {
@@ -512,7 +516,8 @@ impl<'a> Reader<'a> {
     }
 
     /// Locates an accessor's elements of `element` bytes, after checking that its buffer view
-    /// lies in its buffer and that all its elements lie in the view (glTF 2.0 §3.6.2.4).
+    /// lies in its buffer and that all its elements lie in the view (glTF 2.0, accessors' "Data
+    /// Alignment").
     fn accessor_bytes(
         &mut self,
         accessor: &Accessor,
@@ -744,4 +749,124 @@ fn percent_decode(uri: &str) -> Option<String> {
         }
     }
     String::from_utf8(out).ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A GLB from raw chunks `(type, data)`, with a correct total length.
+    fn container(chunks: &[(&[u8; 4], &[u8])]) -> Vec<u8> {
+        let mut body = Vec::new();
+        for (kind, data) in chunks {
+            body.extend_from_slice(&(data.len() as u32).to_le_bytes());
+            body.extend_from_slice(*kind);
+            body.extend_from_slice(data);
+        }
+        let mut out = b"glTF".to_vec();
+        out.extend_from_slice(&2u32.to_le_bytes());
+        out.extend_from_slice(&(12 + body.len() as u32).to_le_bytes());
+        out.extend(body);
+        out
+    }
+
+    #[test]
+    fn splits_chunks_ignoring_unknown_and_later_bin_chunks() {
+        let bytes = container(&[
+            (b"JSON", b"{}  "),
+            (b"XTRA", b"zzzz"),
+            (b"BIN\0", b"abcd"),
+            (b"BIN\0", b"efgh"),
+        ]);
+        let glb = split_glb(&bytes).unwrap();
+        assert_eq!(glb.json, b"{}  ");
+        let bin = glb.bin.unwrap();
+        assert_eq!(bin.data, b"abcd");
+        assert_eq!(bin.offset, 12 + 12 + 12 + 8);
+    }
+
+    #[test]
+    fn locates_chunk_problems() {
+        let mut bytes = container(&[(b"JSON", b"{}  "), (b"BIN\0", b"abcd")]);
+        // The BIN chunk claims 100 bytes.
+        bytes[24..28].copy_from_slice(&100u32.to_le_bytes());
+        let e = split_glb(&bytes).err().unwrap();
+        assert_eq!(e.at, Some(Location::Byte(24)));
+        assert_eq!(
+            e.problem,
+            Problem::Truncated {
+                needed: 108,
+                available: 12
+            }
+        );
+        // Four stray bytes after the last chunk: too few for a chunk header.
+        let mut bytes = container(&[(b"JSON", b"{}  ")]);
+        bytes.extend_from_slice(b"\0\0\0\0");
+        bytes[8..12].copy_from_slice(&28u32.to_le_bytes());
+        let e = split_glb(&bytes).err().unwrap();
+        assert_eq!(e.at, Some(Location::Byte(24)));
+        assert!(matches!(
+            e.problem,
+            Problem::Truncated {
+                needed: 8,
+                available: 4
+            }
+        ));
+        // A header and nothing else.
+        let bytes = container(&[]);
+        let e = split_glb(&bytes).err().unwrap();
+        assert_eq!(e.at, Some(Location::Byte(12)));
+        // A chunk length near u32::MAX does not overflow anything.
+        let mut bytes = container(&[(b"JSON", b"{}  ")]);
+        bytes[12..16].copy_from_slice(&u32::MAX.to_le_bytes());
+        assert!(split_glb(&bytes).is_err());
+    }
+
+    #[test]
+    fn recognises_schemes() {
+        for uri in [
+            "http://x/a.bin",
+            "https://x",
+            "file:///a",
+            "C:/a.bin",
+            "data:x",
+            "a+b.c-d:x",
+        ] {
+            assert!(has_scheme(uri), "{uri}");
+        }
+        for uri in ["a.bin", "dir/a.bin", "a%3Ab.bin", "./a:b.bin", "1a:b", ":a"] {
+            assert!(!has_scheme(uri), "{uri}");
+        }
+    }
+
+    #[test]
+    fn percent_decodes_strictly() {
+        assert_eq!(percent_decode("a%20b%2Fc").as_deref(), Some("a b/c"));
+        assert_eq!(percent_decode("caf%C3%A9").as_deref(), Some("café"));
+        for bad in ["a%2", "a%zz", "%", "%FF", "a%C3"] {
+            assert_eq!(percent_decode(bad), None, "{bad}");
+        }
+    }
+
+    #[test]
+    fn decodes_data_uris_with_or_without_padding() {
+        assert_eq!(
+            decode_data_uri("application/octet-stream;base64,AAEC").unwrap(),
+            [0, 1, 2]
+        );
+        assert_eq!(
+            decode_data_uri("application/gltf-buffer;base64,AAE=").unwrap(),
+            [0, 1]
+        );
+        assert_eq!(
+            decode_data_uri("application/gltf-buffer;base64,AAE").unwrap(),
+            [0, 1]
+        );
+        assert!(matches!(
+            decode_data_uri("image/png;base64,AAEC")
+                .unwrap_err()
+                .problem,
+            Problem::Unsupported { .. }
+        ));
+    }
 }

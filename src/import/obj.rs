@@ -465,6 +465,19 @@ mod tests {
     }
 
     #[test]
+    fn hands_tobj_only_vertices_and_faces() {
+        let text = format!(
+            "mtllib a.mtl\nusemtl x\no a\ng b\ns 1\nvt 0 0\nvn 0 0 1\n{TRIANGLE}v 1 1 1 0.5 0.5 0.5\nl 1 2\np 1\nf 1/1/1 2//1 3/1\n"
+        );
+        let scan = scan(text.as_bytes(), &ImportLimits::default()).unwrap();
+        let normalized = String::from_utf8(scan.normalized).unwrap();
+        assert_eq!(
+            normalized,
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 1\nf 1/1/1 2//1 3/1\n"
+        );
+    }
+
+    #[test]
     fn skips_polylines_and_points_with_warnings() {
         let text = format!("{TRIANGLE}l 1 2 3\np 1\nf 1 2 3\n");
         let soup = read(&text).unwrap();
