@@ -50,11 +50,7 @@ mod tests {
         assert_eq!(fs::read(&path).unwrap(), b"new");
         let failed = write_atomic(&path, |_| Err(io::Error::other("disk full")));
         assert!(failed.is_err());
-        assert_eq!(
-            fs::read(&path).unwrap(),
-            b"new",
-            "a failed write keeps the old file"
-        );
+        assert_eq!(fs::read(&path).unwrap(), b"new", "a failed write keeps the old file");
         let leftovers = fs::read_dir(&dir).unwrap().count();
         assert_eq!(leftovers, 1, "no temporary file is left behind");
         fs::remove_dir_all(&dir).unwrap();

@@ -66,26 +66,10 @@ impl RepairReport {
             (self.welded_vertices, "welded", "vertices"),
             (self.degenerate_faces, "dropped", "degenerate faces"),
             (self.duplicate_faces, "dropped", "duplicate faces"),
-            (
-                self.unreferenced_vertices,
-                "dropped",
-                "unreferenced vertices",
-            ),
-            (
-                self.flipped_faces,
-                "flipped",
-                "faces to a consistent orientation",
-            ),
-            (
-                self.reoriented_components,
-                "turned outward",
-                "inside-out components",
-            ),
-            (
-                self.nonmanifold_edges,
-                "kept",
-                "non-manifold edges as borders",
-            ),
+            (self.unreferenced_vertices, "dropped", "unreferenced vertices"),
+            (self.flipped_faces, "flipped", "faces to a consistent orientation"),
+            (self.reoriented_components, "turned outward", "inside-out components"),
+            (self.nonmanifold_edges, "kept", "non-manifold edges as borders"),
             (self.nonmanifold_vertices, "kept", "non-manifold vertices"),
         ];
         items
@@ -330,12 +314,7 @@ mod tests {
 
     /// A tetrahedron given as four separate triangles (12 vertices), as STL stores it.
     fn split_tetrahedron(inside_out: bool) -> Soup {
-        let v = [
-            [1.0, 1.0, 1.0],
-            [1.0, -1.0, -1.0],
-            [-1.0, 1.0, -1.0],
-            [-1.0, -1.0, 1.0],
-        ];
+        let v = [[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]];
         let faces = [[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]];
         let mut positions = Vec::new();
         let mut triangles = Vec::new();

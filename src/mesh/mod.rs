@@ -11,8 +11,8 @@
 pub mod curvature;
 mod topology;
 
-pub(crate) use topology::orientation_flips;
 pub use topology::Topology;
+pub(crate) use topology::orientation_flips;
 
 use glam::DVec3;
 use serde::Serialize;

@@ -398,9 +398,7 @@ fn local_edge(face: &[u32; 3], a: u32, b: u32) -> Option<usize> {
 
 /// Corner of `face` holding vertex `v` (which it must contain).
 fn corner_of(face: &[u32; 3], v: u32) -> usize {
-    face.iter()
-        .position(|&x| x == v)
-        .expect("face contains vertex")
+    face.iter().position(|&x| x == v).expect("face contains vertex")
 }
 
 /// Per-face flags saying which faces to flip so that each component is consistently
