@@ -405,9 +405,10 @@ fn obj_reads_back_with_tobj() {
         assert_eq!(m.positions.len(), 3 * mesh.vertex_count());
         let flat: Vec<u32> = mesh.faces().iter().flatten().copied().collect();
         assert_eq!(m.indices.len(), flat.len());
-        let read_vec3 = |values: &[f32], i: u32| {
+        // tobj reads in f64 here (the `use_f64` feature); each value is a written f32.
+        let read_vec3 = |values: &[f64], i: u32| {
             let i = 3 * i as usize;
-            Vec3::new(values[i], values[i + 1], values[i + 2])
+            Vec3::new(values[i] as f32, values[i + 1] as f32, values[i + 2] as f32)
         };
         let mismatched = (0..flat.len())
             .filter(|&k| {

@@ -6,7 +6,6 @@ mod info;
 
 use clap::{Args, Parser, Subcommand};
 use ellip::import::{ImportOptions, Weld};
-use std::path::PathBuf;
 
 /// The error type of every subcommand: shown to the user as one line.
 pub type CliError = Box<dyn std::error::Error + Send + Sync>;
@@ -108,7 +107,10 @@ pub fn shown(path: &std::path::Path) -> String {
 }
 
 /// Fails when `output` names the same file as `input`.
-pub fn refuse_overwriting(input: &std::path::Path, output: &PathBuf) -> Result<(), CliError> {
+pub fn refuse_overwriting(
+    input: &std::path::Path,
+    output: &std::path::Path,
+) -> Result<(), CliError> {
     let same = match (input.canonicalize(), output.canonicalize()) {
         (Ok(a), Ok(b)) => a == b,
         _ => false,
