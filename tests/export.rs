@@ -12,7 +12,8 @@ use ellip::Mesh;
 use glam::{DVec3, Vec3};
 use std::fs;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+
+mod common;
 
 /// A fresh, empty folder for one test.
 fn scratch(name: &str) -> PathBuf {
@@ -233,25 +234,9 @@ fn embedded_gltf_carries_its_buffer() {
     assert_matches(&read_gltf(&json, Some(&bin)), &mesh, None);
 }
 
-/// Whether the validator can run: `node` answers and the npm package is installed.
-fn validator_available(root: &Path) -> Result<(), String> {
-    if !root.join(".ci/node_modules/gltf-validator").is_dir() {
-        return Err("gltf-validator is not installed (run `npm ci --prefix .ci`)".into());
-    }
-    match Command::new("node").arg("--version").output() {
-        Ok(out) if out.status.success() => Ok(()),
-        Ok(out) => Err(format!("`node --version` failed: {}", out.status)),
-        Err(e) => Err(format!("node is not available: {e}")),
-    }
-}
-
 #[test]
 fn khronos_validator_accepts_everything_we_write() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    if let Err(why) = validator_available(root) {
-        let required = std::env::var("ELLIP_REQUIRE_GLTF_VALIDATOR").is_ok_and(|v| v == "1");
-        assert!(!required, "ELLIP_REQUIRE_GLTF_VALIDATOR=1 but {why}");
-        println!("skipped: {why}");
+    if !common::validator_ready() {
         return;
     }
 
@@ -320,7 +305,7 @@ fn khronos_validator_accepts_everything_we_write() {
     .unwrap();
     files.push(embedded);
 
-    let (ok, stdout) = run_validator(root, &files);
+    let (ok, stdout) = common::run_validator(&files);
     assert!(ok, "the validator reports problems");
     for file in &files {
         let line = format!("{}: 0 errors, 0 warnings,", file.display());
@@ -338,23 +323,10 @@ fn khronos_validator_accepts_everything_we_write() {
     broken["accessors"][0]["max"] = serde_json::json!([0.0, 0.0, 0.0]);
     let broken_path = dir.join("broken.gltf");
     fs::write(&broken_path, serde_json::to_vec(&broken).unwrap()).unwrap();
-    let (ok, stdout) = run_validator(root, &[broken_path]);
+    let (ok, stdout) = common::run_validator(&[broken_path]);
     assert!(!ok, "the validator run fails on a broken file");
     assert!(stdout.contains("ACCESSOR_MAX_MISMATCH"), "{stdout}");
     fs::remove_dir_all(&dir).unwrap();
-}
-
-/// Runs `.ci/validate-gltf.mjs` on `files`: whether it passed, and what it printed.
-fn run_validator(root: &Path, files: &[PathBuf]) -> (bool, String) {
-    let out = Command::new("node")
-        .arg(root.join(".ci/validate-gltf.mjs"))
-        .args(files)
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-    println!("{stdout}");
-    eprintln!("{}", String::from_utf8_lossy(&out.stderr));
-    (out.status.success(), stdout)
 }
 
 // ---------------------------------------------------------------------------------------

@@ -1,6 +1,9 @@
 //! Every real mesh in `../shared/meshes` imports with the topology its README documents.
 //! Skips (and says so) when that folder is absent: the meshes are never committed here.
 
+mod common;
+
+use ellip::export::{write_mesh, MeshData};
 use ellip::import::{read_mesh, ImportOptions};
 use std::path::{Path, PathBuf};
 
@@ -86,4 +89,29 @@ fn the_inward_horse_is_turned_outward() {
     assert!(kept.mesh.signed_volume() < 0.0);
     let v = imported.mesh.volume().unwrap();
     assert!((v + kept.mesh.signed_volume()).abs() < 1e-12 * v.abs().max(1.0));
+}
+
+#[test]
+fn every_real_mesh_converts_to_a_valid_glb() {
+    let Some(dir) = shared_meshes() else { return };
+    if !common::validator_ready() {
+        return;
+    }
+    let out = std::env::temp_dir().join(format!("ellip-shared-glb-{}", std::process::id()));
+    std::fs::create_dir_all(&out).unwrap();
+    let mut written = Vec::new();
+    for &(name, ..) in EXPECTED {
+        let path = dir.join(name);
+        if !path.exists() {
+            continue;
+        }
+        let mesh = read_mesh(&path, &ImportOptions::default()).unwrap().mesh;
+        let normals = mesh.vertex_normals();
+        let glb = out.join(name.replace(".obj", ".glb"));
+        write_mesh(&glb, &MeshData::from_mesh(&mesh).with_normals(&normals)).unwrap();
+        written.push(glb);
+    }
+    let (ok, report) = common::run_validator(&written);
+    assert!(ok, "the validator flags a converted mesh:\n{report}");
+    std::fs::remove_dir_all(&out).unwrap();
 }
