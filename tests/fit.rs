@@ -63,7 +63,10 @@ fn random_ellipsoid(rng: &mut SplitMix64) -> Ellipsoid {
             rng.range_f64(-5.0, 5.0),
             rng.range_f64(-5.0, 5.0),
         ),
-        rotation: DQuat::from_axis_angle(random_unit(rng), rng.range_f64(0.0, std::f64::consts::TAU)),
+        rotation: DQuat::from_axis_angle(
+            random_unit(rng),
+            rng.range_f64(0.0, std::f64::consts::TAU),
+        ),
         radii: DVec3::new(
             base * rng.range_f64(1.0, 5.0),
             base * rng.range_f64(1.0, 5.0),
@@ -194,42 +197,66 @@ fn partial_caps_recover_the_surface() {
     eprintln!("partial caps 10-30%: worst RMS radial distance / patch diameter {worst:.2e}");
 }
 
-/// What each start contributes on partial caps: the paper's principal-axes start alone
-/// against all starts. The full set must never be worse.
+/// What each start contributes on exact partial caps: the paper's principal-axes start
+/// alone, with the two spheres, and with the algebraic quadric too (the default). A case is
+/// missed when the RMS radial distance exceeds 10⁻⁹ of the patch diameter (exact data: a
+/// converged fit is at rounding level). The default set must miss none and never be worse.
 #[test]
 fn better_starts_help_on_partial_caps() {
     let mut rng = SplitMix64::new(300);
-    let (mut axes_fail, mut all_fail, mut cases) = (0, 0, 0);
+    let configs = [
+        (
+            "principal axes",
+            Starts {
+                principal_axes: true,
+                oriented_sphere: false,
+                algebraic_sphere: false,
+                quadric: false,
+            },
+        ),
+        (
+            "+ spheres",
+            Starts {
+                principal_axes: true,
+                oriented_sphere: true,
+                algebraic_sphere: true,
+                quadric: false,
+            },
+        ),
+        ("+ quadric (default)", Starts::default()),
+    ];
+    let mut misses = [0usize; 3];
+    let mut cases = 0;
     for &fraction in &[0.1, 0.2, 0.3] {
-        for _ in 0..8 {
+        for _ in 0..12 {
             let truth = random_ellipsoid(&mut rng);
-            let s = cap_samples(&mut rng, &truth, fraction, 300);
-            let all = FitOptions::surface(&s.scale());
-            let axes_only = FitOptions {
-                starts: Starts {
-                    principal_axes: true,
-                    oriented_sphere: false,
-                    algebraic_sphere: false,
-                },
-                ..all
-            };
-            let a = fit_ellipsoid(&s.input(), &axes_only);
-            let b = fit_ellipsoid(&s.input(), &all);
-            let ra = rms_radial_distance(&a.ellipsoid, &s.points) / s.diameter();
-            let rb = rms_radial_distance(&b.ellipsoid, &s.points) / s.diameter();
+            let s = cap_samples(&mut rng, &truth, fraction, 200);
+            let base = FitOptions::surface(&s.scale());
+            let fits: Vec<Fit> = configs
+                .iter()
+                .map(|(_, starts)| {
+                    fit_ellipsoid(
+                        &s.input(),
+                        &FitOptions {
+                            starts: *starts,
+                            ..base
+                        },
+                    )
+                })
+                .collect();
+            for (k, fit) in fits.iter().enumerate() {
+                let rms = rms_radial_distance(&fit.ellipsoid, &s.points) / s.diameter();
+                misses[k] += usize::from(rms > 1e-9);
+            }
             cases += 1;
-            axes_fail += usize::from(ra > 1e-3);
-            all_fail += usize::from(rb > 1e-3);
-            assert!(
-                b.error <= a.error * (1.0 + 1e-9) + 1e-12,
-                "{} > {}",
-                b.error,
-                a.error
-            );
+            let (a, b) = (fits[0].error, fits[2].error);
+            assert!(b <= a * (1.0 + 1e-9) + 1e-12, "{b} > {a}");
         }
     }
-    eprintln!("partial caps: principal axes alone misses {axes_fail}/{cases}, all starts {all_fail}/{cases}");
-    assert_eq!(all_fail, 0);
+    for ((name, _), m) in configs.iter().zip(misses) {
+        eprintln!("partial caps, {name}: {m}/{cases} not recovered");
+    }
+    assert_eq!(misses[2], 0);
 }
 
 fn noisy(rng: &mut SplitMix64, s: &Samples, sigma: f64, length: f64) -> Samples {
@@ -258,8 +285,12 @@ fn noisy_samples_fit_with_error_proportional_to_noise() {
         let mean_radius = truth.radii.element_sum() / 3.0;
         for (k, &sigma) in sigmas.iter().enumerate() {
             let s = noisy(&mut rng, &clean, sigma, mean_radius);
-            let fit = fit_ellipsoid(&s.input(), &FitOptions::surface(&clean.scale()));
+            let options = FitOptions::surface(&clean.scale());
+            let fit = fit_ellipsoid(&s.input(), &options);
             assert_finite(&fit);
+            // The minimiser does at least as well as the truth on its own objective.
+            let truth_error = evaluate_error(&s.input(), &options, &truth);
+            assert!(fit.error <= truth_error, "{} > {truth_error}", fit.error);
             // Distance between the fitted surface and the true one, at the clean points.
             deviation[k] +=
                 rms_radial_distance(&fit.ellipsoid, &clean.points) / mean_radius / trials as f64;

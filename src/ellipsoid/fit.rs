@@ -9,7 +9,8 @@
 //!   and the weights converted so that the objective is unchanged. Every tolerance and cap
 //!   below is in these units.
 //! - **Parametrisation.** Centre c, radii r = exp(ℓ) (log-parametrised, so always positive),
-//!   rotation R updated multiplicatively by small axis-angle steps R ← R·exp([ω]×).
+//!   rotation R updated multiplicatively by small axis-angle steps R ← R·exp([ω]×); centre
+//!   steps are taken in the ellipsoid's own frame (c ← c + R·δc).
 //! - **Residuals.** Per sample with weight w: √(wα)·d (signed radial distance),
 //!   √(wβ)·(ν − s·m) (normal in the ellipsoid's frame, 3 components), √(wγ)·(H − s·H_P);
 //!   optionally √δ·(V(R) − 4/3·πabc) once. Jacobians are analytic (derived in the local
@@ -161,6 +162,8 @@ pub struct Starts {
     pub oriented_sphere: bool,
     /// The algebraic sphere through the points alone.
     pub algebraic_sphere: bool,
+    /// The algebraic quadric through the oriented points, when it is an ellipsoid.
+    pub quadric: bool,
 }
 
 impl Default for Starts {
@@ -169,6 +172,7 @@ impl Default for Starts {
             principal_axes: true,
             oriented_sphere: true,
             algebraic_sphere: true,
+            quadric: true,
         }
     }
 }
@@ -196,6 +200,9 @@ pub struct FitOptions {
     pub max_solver_points: usize,
     /// Iterations from each start before the best one continues (default 6).
     pub probe_iterations: u32,
+    /// Most samples the probe iterations use (default 256), picked by stride from the
+    /// solver's samples.
+    pub probe_points: usize,
     /// Most iterations in all for the best start (default 100).
     pub max_iterations: u32,
 }
@@ -215,6 +222,7 @@ impl FitOptions {
             min_radius: 1e-6,
             max_solver_points: 2048,
             probe_iterations: 6,
+            probe_points: 256,
             max_iterations: 100,
         }
     }
@@ -342,6 +350,8 @@ struct Canonical {
     origin: DVec3,
     scale: f64,
     samples: Vec<Sample>,
+    /// A stride subset of `samples` for the probe iterations from every start.
+    probe_samples: Vec<Sample>,
     alpha: f64,
     beta: f64,
     gamma: f64,
@@ -438,10 +448,12 @@ impl Canonical {
         } else {
             1e-6
         };
+        let probe_samples = stride_subsample(&samples, options.probe_points.max(16));
         let mut problem = Canonical {
             origin,
             scale,
             samples,
+            probe_samples,
             alpha,
             beta,
             gamma,
@@ -497,7 +509,7 @@ impl Canonical {
     /// Minimise for one sign from every start; the best start continues to convergence.
     fn solve(&self, sign: Sign) -> Params {
         let s = sign.factor();
-        let mut starts: [Option<Params>; 4] = [None; 4];
+        let mut starts: [Option<Params>; 5] = [None; 5];
         starts[0] = self.start;
         let fresh = self.start.is_none() || self.options.fresh_starts_with_warm;
         if fresh {
@@ -512,6 +524,9 @@ impl Canonical {
             if st.algebraic_sphere {
                 starts[3] = self.algebraic_sphere(axes.rot);
             }
+            if st.quadric {
+                starts[4] = self.quadric();
+            }
             if starts.iter().all(Option::is_none) {
                 starts[1] = Some(axes);
             }
@@ -519,8 +534,13 @@ impl Canonical {
         let mut best: Option<(Params, f64, f64, bool)> = None;
         for x in starts.into_iter().flatten() {
             let x = self.clamp(x);
-            let (x, cost, lambda, done) =
-                self.levenberg_marquardt(x, s, 1e-3, self.options.probe_iterations);
+            let (x, cost, lambda, done, _) = self.levenberg_marquardt(
+                &self.probe_samples,
+                x,
+                s,
+                1e-3,
+                self.options.probe_iterations,
+            );
             if best.is_none_or(|b| cost < b.1) {
                 best = Some((x, cost, lambda, done));
             }
@@ -528,14 +548,16 @@ impl Canonical {
         let Some((x, _, lambda, done)) = best else {
             return self.principal_axes();
         };
-        if done {
+        // Converged on the probe samples is converged only if they are all the samples.
+        if done && self.probe_samples.len() == self.samples.len() {
             return x;
         }
         let rest = self
             .options
             .max_iterations
             .saturating_sub(self.options.probe_iterations);
-        self.levenberg_marquardt(x, s, lambda, rest).0
+        self.levenberg_marquardt(&self.samples, x, s, lambda, rest)
+            .0
     }
 
     /// The weighted centroid (the canonical origin) and principal axes (section 4), radii
@@ -640,22 +662,144 @@ impl Canonical {
         })
     }
 
+    /// An algebraic quadric f(x) = xᵀAx + b·x + c through the oriented points, in the spirit
+    /// of Li & Griffiths (2004) but using the normals: least squares on f(p) = 0 and
+    /// ∇f(p) × n = 0 (both linear in the ten coefficients), i.e. the eigenvector of the
+    /// smallest eigenvalue of the 10×10 scatter matrix. Exact on exact samples of any patch
+    /// that determines the ellipsoid; `None` unless the quadric is an ellipsoid.
+    fn quadric(&self) -> Option<Params> {
+        let mut m = [[0.0; 10]; 10];
+        let mut add = |w: f64, row: &[f64; 10]| {
+            for i in 0..10 {
+                for j in i..10 {
+                    m[i][j] += w * row[i] * row[j];
+                }
+            }
+        };
+        for smp in &self.samples {
+            let p = smp.p;
+            let n = smp.n;
+            add(
+                smp.w,
+                &[
+                    p.x * p.x,
+                    p.y * p.y,
+                    p.z * p.z,
+                    2.0 * p.x * p.y,
+                    2.0 * p.x * p.z,
+                    2.0 * p.y * p.z,
+                    p.x,
+                    p.y,
+                    p.z,
+                    1.0,
+                ],
+            );
+            // Rows of the gradient 2Ap + b as linear forms of the coefficients.
+            let gx = [
+                2.0 * p.x,
+                0.0,
+                0.0,
+                2.0 * p.y,
+                2.0 * p.z,
+                0.0,
+                1.0,
+                0.0,
+                0.0,
+                0.0,
+            ];
+            let gy = [
+                0.0,
+                2.0 * p.y,
+                0.0,
+                2.0 * p.x,
+                0.0,
+                2.0 * p.z,
+                0.0,
+                1.0,
+                0.0,
+                0.0,
+            ];
+            let gz = [
+                0.0,
+                0.0,
+                2.0 * p.z,
+                0.0,
+                2.0 * p.x,
+                2.0 * p.y,
+                0.0,
+                0.0,
+                1.0,
+                0.0,
+            ];
+            let combine = |a: &[f64; 10], ka: f64, b: &[f64; 10], kb: f64| {
+                let mut r = [0.0; 10];
+                for i in 0..10 {
+                    r[i] = ka * a[i] - kb * b[i];
+                }
+                r
+            };
+            add(smp.w, &combine(&gy, n.z, &gz, n.y));
+            add(smp.w, &combine(&gz, n.x, &gx, n.z));
+            add(smp.w, &combine(&gx, n.y, &gy, n.x));
+        }
+        for i in 0..10 {
+            for j in 0..i {
+                m[i][j] = m[j][i];
+            }
+        }
+        let (values, vectors) = jacobi_eigen(m);
+        let smallest = (0..10).min_by(|&i, &j| values[i].total_cmp(&values[j]))?;
+        let v: [f64; 10] = std::array::from_fn(|k| vectors[k][smallest]);
+        let a = [[v[0], v[3], v[4]], [v[3], v[1], v[5]], [v[4], v[5], v[2]]];
+        let b = DVec3::new(v[6], v[7], v[8]);
+        let (mut lambdas, axes) = eigen_symmetric(a);
+        // Make A positive definite (the quadric's overall sign is arbitrary).
+        let flip = if lambdas[0] < 0.0 { -1.0 } else { 1.0 };
+        lambdas = lambdas.map(|l| flip * l);
+        let (b, c) = (flip * b, flip * v[9]);
+        if lambdas
+            .iter()
+            .any(|&l| l.is_nan() || l <= 1e-12 * lambdas[0].abs().max(1e-300))
+        {
+            return None;
+        }
+        // Centre −½A⁻¹b, through the eigenbasis.
+        let bl = axes.transpose() * b;
+        let cl = DVec3::new(
+            -0.5 * bl.x / lambdas[0],
+            -0.5 * bl.y / lambdas[1],
+            -0.5 * bl.z / lambdas[2],
+        );
+        let level = -(c + 0.5 * bl.dot(cl));
+        if level.is_nan() || level <= 0.0 {
+            return None;
+        }
+        let radii = DVec3::from_array(lambdas.map(|l| (level / l).sqrt()));
+        let centre = axes * cl;
+        (radii.is_finite() && centre.is_finite()).then(|| Params {
+            c: centre,
+            rot: DQuat::from_mat3(&axes),
+            l: radii.map(f64::ln),
+        })
+    }
+
     /// Levenberg–Marquardt from `x` for at most `iterations`; returns the parameters, their
     /// cost, the damping reached and whether it converged.
     fn levenberg_marquardt(
         &self,
+        samples: &[Sample],
         mut x: Params,
         s: f64,
         mut lambda: f64,
         iterations: u32,
-    ) -> (Params, f64, f64, bool) {
+    ) -> (Params, f64, f64, bool, u32) {
         let mut a: Mat9 = [[0.0; 9]; 9];
         let mut g = [0.0; 9];
-        let mut cost = self.build_normal_equations(&x, s, &mut a, &mut g);
+        let mut cost = self.build_normal_equations(samples, &x, s, &mut a, &mut g);
         if !cost.is_finite() {
-            return (x, f64::MAX, lambda, true);
+            return (x, f64::MAX, lambda, true, 0);
         }
-        for _ in 0..iterations {
+        for it in 0..iterations {
             let max_diag = (0..9).map(|i| a[i][i]).fold(0.0, f64::max);
             let floor = 1e-12 * max_diag.max(1e-300);
             let mut accepted = false;
@@ -670,26 +814,26 @@ impl Canonical {
                     continue;
                 };
                 let candidate = self.apply_step(&x, &step);
-                let new_cost = self.cost(&candidate, s);
+                let new_cost = self.cost(samples, &candidate, s);
                 if new_cost.is_finite() && new_cost < cost {
                     let decrease = cost - new_cost;
                     let step_len = step.iter().map(|v| v * v).sum::<f64>().sqrt();
                     x = candidate;
-                    cost = self.build_normal_equations(&x, s, &mut a, &mut g);
+                    cost = self.build_normal_equations(samples, &x, s, &mut a, &mut g);
                     lambda = (lambda / 3.0).max(1e-15);
                     accepted = true;
-                    if decrease <= 1e-15 * cost || step_len < 1e-11 {
-                        return (x, cost, lambda, true);
+                    if decrease <= 1e-10 * cost || step_len < 1e-11 {
+                        return (x, cost, lambda, true, it);
                     }
                     break;
                 }
                 lambda *= 4.0;
             }
             if !accepted {
-                return (x, cost, lambda, true);
+                return (x, cost, lambda, true, it);
             }
         }
-        (x, cost, lambda, false)
+        (x, cost, lambda, false, iterations)
     }
 
     fn apply_step(&self, x: &Params, step: &[f64; 9]) -> Params {
@@ -697,14 +841,14 @@ impl Canonical {
         let dw = DVec3::new(step[3], step[4], step[5]);
         let dl = DVec3::new(step[6], step[7], step[8]);
         self.clamp(Params {
-            c: x.c + dc,
+            c: x.c + x.rot * dc,
             rot: (x.rot * DQuat::from_scaled_axis(dw)).normalize(),
             l: x.l + dl,
         })
     }
 
     /// The objective in canonical units.
-    fn cost(&self, x: &Params, s: f64) -> f64 {
+    fn cost(&self, samples: &[Sample], x: &Params, s: f64) -> f64 {
         let e = Ellipsoid {
             center: x.c,
             rotation: x.rot,
@@ -721,7 +865,7 @@ impl Canonical {
             gamma: self.gamma,
         };
         let mut sum = 0.0;
-        for smp in &self.samples {
+        for smp in samples {
             sum += smp.w * measure_vertex_terms(&e, smp.p, smp.n, smp.h).weighted(&w);
         }
         if let Some((sqrt_delta, hull)) = self.volume {
@@ -733,64 +877,74 @@ impl Canonical {
     }
 
     /// Jᵀ J and Jᵀ r at `x` (upper and lower triangles both filled); returns the cost.
-    fn build_normal_equations(&self, x: &Params, s: f64, a: &mut Mat9, g: &mut [f64; 9]) -> f64 {
+    fn build_normal_equations(
+        &self,
+        samples: &[Sample],
+        x: &Params,
+        s: f64,
+        a: &mut Mat9,
+        g: &mut [f64; 9],
+    ) -> f64 {
         *a = [[0.0; 9]; 9];
         *g = [0.0; 9];
         let rot_t = DMat3::from_quat(x.rot.conjugate());
-        let rot = DMat3::from_quat(x.rot);
         let r = x.l.map(f64::exp);
         let mut cost = 0.0;
-        let mut add = |res: f64, gq: DVec3, gl: DVec3, gw_extra: DVec3, q: DVec3| {
-            // ∂/∂c = −R·g_q, ∂/∂ω = g_q × q (+ direct terms), ∂/∂ℓ = g_l.
-            let jc = -(rot * gq);
+        // Centre steps are taken in the ellipsoid's frame (c ← c + R·δc), so ∂/∂δc = −g_q;
+        // ∂/∂ω = g_q × q (+ direct terms); ∂/∂ℓ = g_l.
+        let row = |gq: DVec3, gl: DVec3, gw_extra: DVec3, q: DVec3| {
             let jw = gq.cross(q) + gw_extra;
-            let j = [jc.x, jc.y, jc.z, jw.x, jw.y, jw.z, gl.x, gl.y, gl.z];
-            for i in 0..9 {
-                g[i] += j[i] * res;
-                for k in i..9 {
-                    a[i][k] += j[i] * j[k];
-                }
-            }
-            cost += res * res;
+            [-gq.x, -gq.y, -gq.z, jw.x, jw.y, jw.z, gl.x, gl.y, gl.z]
         };
-        for smp in &self.samples {
+        // Up to five rows per sample, added to A in one pass.
+        let mut rows = [[0.0; 9]; 5];
+        let mut res = [0.0; 5];
+        for smp in samples {
             let q = rot_t * (smp.p - x.c);
             let nu = rot_t * smp.n;
-            let terms = residual_gradients(q, r, s);
+            let terms = residual_gradients(q, r);
             let sa = (smp.w * self.alpha).sqrt();
             let sb = (smp.w * self.beta).sqrt();
             let sg = (smp.w * self.gamma).sqrt();
+            let mut count = 0;
             if sa > 0.0 {
-                add(sa * terms.d, sa * terms.d_q, sa * terms.d_l, DVec3::ZERO, q);
+                rows[count] = row(sa * terms.d_q, sa * terms.d_l, DVec3::ZERO, q);
+                res[count] = sa * terms.d;
+                count += 1;
             }
             if sb > 0.0 {
                 for k in 0..3 {
-                    let e = DVec3::AXES[k];
                     // a_k = ν_k − s·m_k; ∂ν_k/∂ω = e_k × ν.
-                    add(
-                        sb * (nu[k] - s * terms.m[k]),
+                    let e = DVec3::AXES[k];
+                    rows[count] = row(
                         -s * sb * terms.m_q[k],
                         -s * sb * terms.m_l[k],
                         sb * e.cross(nu),
                         q,
                     );
+                    res[count] = sb * (nu[k] - s * terms.m[k]);
+                    count += 1;
                 }
             }
             if sg > 0.0 {
-                add(
-                    sg * (smp.h - s * terms.h),
-                    -s * sg * terms.h_q,
-                    -s * sg * terms.h_l,
-                    DVec3::ZERO,
-                    q,
-                );
+                rows[count] = row(-s * sg * terms.h_q, -s * sg * terms.h_l, DVec3::ZERO, q);
+                res[count] = sg * (smp.h - s * terms.h);
+                count += 1;
             }
+            accumulate(a, g, &rows[..count], &res[..count]);
+            cost += res[..count].iter().map(|r| r * r).sum::<f64>();
         }
         if let Some((sqrt_delta, hull)) = self.volume {
             let vol = 4.0 / 3.0 * std::f64::consts::PI * r.x * r.y * r.z;
-            let res = sqrt_delta * (hull - vol);
+            let rv = sqrt_delta * (hull - vol);
             let gl = DVec3::splat(-sqrt_delta * vol);
-            add(res, DVec3::ZERO, gl, DVec3::ZERO, DVec3::ZERO);
+            accumulate(
+                a,
+                g,
+                &[row(DVec3::ZERO, gl, DVec3::ZERO, DVec3::ZERO)],
+                &[rv],
+            );
+            cost += rv * rv;
         }
         for i in 0..9 {
             for k in 0..i {
@@ -798,6 +952,42 @@ impl Canonical {
             }
         }
         cost
+    }
+}
+
+/// At most `m` samples picked with a fixed stride, reweighted to keep the total weight.
+fn stride_subsample(samples: &[Sample], m: usize) -> Vec<Sample> {
+    if samples.len() <= m {
+        return samples.to_vec();
+    }
+    let mut out: Vec<Sample> = (0..m)
+        .filter_map(|k| samples.get(k * samples.len() / m).copied())
+        .collect();
+    let total: f64 = samples.iter().map(|s| s.w).sum();
+    let kept: f64 = out.iter().map(|s| s.w).sum();
+    let factor = total / kept;
+    if factor.is_finite() {
+        out.iter_mut().for_each(|s| s.w *= factor);
+    }
+    out
+}
+
+/// A ← A + Σ jⱼ·jⱼᵀ (upper triangle), g ← g + Σ jⱼ·rⱼ, each entry loaded and stored once.
+#[inline(always)]
+fn accumulate(a: &mut Mat9, g: &mut [f64; 9], rows: &[[f64; 9]], res: &[f64]) {
+    for i in 0..9 {
+        let mut gi = g[i];
+        for (j, r) in rows.iter().zip(res) {
+            gi += j[i] * r;
+        }
+        g[i] = gi;
+        for k in i..9 {
+            let mut v = a[i][k];
+            for j in rows {
+                v += j[i] * j[k];
+            }
+            a[i][k] = v;
+        }
     }
 }
 
@@ -822,8 +1012,7 @@ struct LocalTerms {
 /// The analytic derivatives behind the Jacobian. With u = q/r, ρ = |u|, û = u/ρ:
 /// d = |q|(1 − 1/ρ); m = g/|g| with g = u/r; and, on the surface point x = r∘û,
 /// H = N / (2 P G^{3/2}), N = Σ r_k²(1 − û_k²), G = Σ û_k²/r_k², P = Π r_k².
-fn residual_gradients(q: DVec3, r: DVec3, s: f64) -> LocalTerms {
-    let _ = s;
+fn residual_gradients(q: DVec3, r: DVec3) -> LocalTerms {
     let tiny = 1e-150;
     let u = q / r;
     let rho = u.length().max(tiny);
@@ -839,12 +1028,13 @@ fn residual_gradients(q: DVec3, r: DVec3, s: f64) -> LocalTerms {
     let g_len = gvec.length().max(tiny);
     let m = gvec / g_len;
     let r2 = r * r;
+    let inv_gr2 = DVec3::ONE / (g_len * r2);
     let mut m_q = [DVec3::ZERO; 3];
     let mut m_l = [DVec3::ZERO; 3];
     for j in 0..3 {
         for k in 0..3 {
             let proj = if j == k { 1.0 } else { 0.0 } - m[j] * m[k];
-            m_q[j][k] = proj / (g_len * r2[k]);
+            m_q[j][k] = proj * inv_gr2[k];
             m_l[j][k] = -2.0 * m[k] * proj;
         }
     }
@@ -926,6 +1116,59 @@ fn eigen_symmetric(m: [[f64; 3]; 3]) -> ([f64; 3], DMat3) {
     }
 }
 
+/// Eigen-decomposition of a symmetric N×N matrix by cyclic Jacobi rotations: eigenvalues
+/// (unordered) and eigenvectors as the columns of the returned matrix.
+fn jacobi_eigen<const N: usize>(mut a: [[f64; N]; N]) -> ([f64; N], [[f64; N]; N]) {
+    let mut v = [[0.0; N]; N];
+    for (i, row) in v.iter_mut().enumerate() {
+        row[i] = 1.0;
+    }
+    for _ in 0..60 {
+        let mut off = 0.0;
+        let mut diag = 0.0;
+        for i in 0..N {
+            diag += a[i][i] * a[i][i];
+            for j in i + 1..N {
+                off += a[i][j] * a[i][j];
+            }
+        }
+        if off <= 1e-34 * diag || off == 0.0 {
+            break;
+        }
+        for p in 0..N {
+            for q in p + 1..N {
+                if a[p][q] == 0.0 {
+                    continue;
+                }
+                let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
+                let t = if theta == 0.0 {
+                    1.0
+                } else {
+                    theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt())
+                };
+                let c = 1.0 / (t * t + 1.0).sqrt();
+                let s = t * c;
+                for k in 0..N {
+                    let (akp, akq) = (a[k][p], a[k][q]);
+                    a[k][p] = c * akp - s * akq;
+                    a[k][q] = s * akp + c * akq;
+                }
+                for k in 0..N {
+                    let (apk, aqk) = (a[p][k], a[q][k]);
+                    a[p][k] = c * apk - s * aqk;
+                    a[q][k] = s * apk + c * aqk;
+                }
+                for row in v.iter_mut() {
+                    let (vp, vq) = (row[p], row[q]);
+                    row[p] = c * vp - s * vq;
+                    row[q] = s * vp + c * vq;
+                }
+            }
+        }
+    }
+    (std::array::from_fn(|i| a[i][i]), v)
+}
+
 /// Solve a symmetric positive definite system by Cholesky; `None` if not positive definite.
 fn solve_spd<const N: usize>(mut a: [[f64; N]; N], mut b: [f64; N]) -> Option<[f64; N]> {
     for j in 0..N {
@@ -982,12 +1225,12 @@ mod tests {
                 rng.range_f64(-1.0, 1.0),
                 rng.range_f64(-1.0, 1.0),
             );
-            let t = residual_gradients(q, l.map(f64::exp), 1.0);
+            let t = residual_gradients(q, l.map(f64::exp));
             let h = 1e-6;
             for k in 0..3 {
                 let e = DVec3::AXES[k] * h;
-                let tq = |dq: DVec3| residual_gradients(q + dq, l.map(f64::exp), 1.0);
-                let tl = |dl: DVec3| residual_gradients(q, (l + dl).map(f64::exp), 1.0);
+                let tq = |dq: DVec3| residual_gradients(q + dq, l.map(f64::exp));
+                let tl = |dl: DVec3| residual_gradients(q, (l + dl).map(f64::exp));
                 let (qp, qm, lp, lm) = (tq(e), tq(-e), tl(e), tl(-e));
                 let check = |analytic: f64, numeric: f64, what: &str| {
                     assert!(
@@ -1045,15 +1288,15 @@ mod tests {
             };
             let mut a = [[0.0; 9]; 9];
             let mut g = [0.0; 9];
-            let cost = problem.build_normal_equations(&x, s, &mut a, &mut g);
-            assert!((cost - problem.cost(&x, s)).abs() < 1e-9 * cost);
+            let cost = problem.build_normal_equations(&problem.samples, &x, s, &mut a, &mut g);
+            assert!((cost - problem.cost(&problem.samples, &x, s)).abs() < 1e-9 * cost);
             let h = 1e-6;
             for i in 0..9 {
                 let mut step = [0.0; 9];
                 step[i] = h;
-                let plus = problem.cost(&problem.apply_step(&x, &step), s);
+                let plus = problem.cost(&problem.samples, &problem.apply_step(&x, &step), s);
                 step[i] = -h;
-                let minus = problem.cost(&problem.apply_step(&x, &step), s);
+                let minus = problem.cost(&problem.samples, &problem.apply_step(&x, &step), s);
                 let numeric = (plus - minus) / (4.0 * h);
                 assert!(
                     (g[i] - numeric).abs() < 1e-5 * (1.0 + numeric.abs()),
@@ -1090,6 +1333,59 @@ mod tests {
             let back = basis * DMat3::from_diagonal(DVec3::from_array(values)) * basis.transpose();
             assert!((back - m).to_cols_array().iter().all(|v| v.abs() < 1e-12));
         }
+    }
+
+    #[test]
+    fn jacobi_handles_larger_matrices() {
+        let mut rng = SplitMix64::new(13);
+        let mut b = [[0.0; 10]; 10];
+        for row in b.iter_mut() {
+            for v in row.iter_mut() {
+                *v = rng.normal();
+            }
+        }
+        // m = bᵀb is symmetric positive semi-definite.
+        let m: [[f64; 10]; 10] = std::array::from_fn(|i| {
+            std::array::from_fn(|j| (0..10).map(|k| b[k][i] * b[k][j]).sum())
+        });
+        let (values, vectors) = jacobi_eigen(m);
+        for e in 0..10 {
+            for i in 0..10 {
+                let mv: f64 = (0..10).map(|j| m[i][j] * vectors[j][e]).sum();
+                assert!((mv - values[e] * vectors[i][e]).abs() < 1e-10);
+            }
+        }
+    }
+
+    #[test]
+    fn quadric_start_is_exact_on_exact_samples() {
+        let truth = Ellipsoid {
+            center: DVec3::new(0.3, -0.2, 0.1),
+            rotation: DQuat::from_euler(glam::EulerRot::XYZ, 0.4, 1.0, -0.3),
+            radii: DVec3::new(2.0, 0.7, 1.2),
+            sign: Sign::Positive,
+        };
+        // A 15% cap: the quadric still pins down the whole ellipsoid.
+        let mut rng = SplitMix64::new(14);
+        let (mut points, mut normals, mut curv) = (Vec::new(), Vec::new(), Vec::new());
+        while points.len() < 200 {
+            let u = DVec3::new(rng.normal(), rng.normal(), rng.normal()).normalize();
+            if u.z > 0.7 {
+                let p = truth.from_unit_sphere(u);
+                points.push(p);
+                normals.push(truth.normal(p));
+                curv.push(truth.mean_curvature(p));
+            }
+        }
+        let input = FitInput::new(&points, &normals, &curv).unwrap();
+        let opts = FitOptions::surface(&super::super::MeshScale::new(1.0, 0.05, 1.0));
+        let problem = Canonical::new(&input, &opts).unwrap();
+        let x = problem.quadric().unwrap();
+        let e = problem.to_world(&x, Sign::Positive);
+        for &p in &points {
+            assert!(e.radial_distance(p) < 1e-6, "{}", e.radial_distance(p));
+        }
+        assert!((e.volume() - truth.volume()).abs() < 1e-5 * truth.volume());
     }
 
     #[test]
