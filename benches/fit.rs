@@ -33,7 +33,7 @@ fn make_region(n: usize, seed: u64) -> Region {
         curvatures: Vec::with_capacity(n),
     };
     let sigma = 0.005;
-    let mut gauss = |rng: &mut SplitMix64| DVec3::new(rng.normal(), rng.normal(), rng.normal());
+    let gauss = |rng: &mut SplitMix64| DVec3::new(rng.normal(), rng.normal(), rng.normal());
     while region.points.len() < n {
         let Some(u) = gauss(&mut rng).try_normalize() else {
             continue;
