@@ -408,6 +408,114 @@ fn units_do_not_change_the_fit() {
     }
 }
 
+/// A closed UV-sphere mesh of the ellipsoid: `rings` latitude bands, `segments` longitudes,
+/// every triangle oriented outward.
+fn uv_ellipsoid_mesh(e: &Ellipsoid, rings: u32, segments: u32) -> ellip::Mesh {
+    use std::f64::consts::{PI, TAU};
+    let mut positions = vec![e.from_unit_sphere(DVec3::Z)];
+    for i in 1..rings {
+        let theta = PI * f64::from(i) / f64::from(rings);
+        for j in 0..segments {
+            let phi = TAU * f64::from(j) / f64::from(segments);
+            let u = DVec3::new(
+                theta.sin() * phi.cos(),
+                theta.sin() * phi.sin(),
+                theta.cos(),
+            );
+            positions.push(e.from_unit_sphere(u));
+        }
+    }
+    positions.push(e.from_unit_sphere(-DVec3::Z));
+    let south = (rings - 1) * segments + 1;
+    let ring = |i: u32, j: u32| 1 + (i - 1) * segments + j % segments;
+    let mut faces = Vec::new();
+    for j in 0..segments {
+        faces.push([0, ring(1, j), ring(1, j + 1)]);
+        faces.push([south, ring(rings - 1, j), ring(rings - 1, j + 1)]);
+        for i in 1..rings - 1 {
+            faces.push([ring(i, j), ring(i + 1, j), ring(i + 1, j + 1)]);
+            faces.push([ring(i, j), ring(i + 1, j + 1), ring(i, j + 1)]);
+        }
+    }
+    for f in faces.iter_mut() {
+        let [a, b, c] = f.map(|v| positions[v as usize]);
+        if (b - a).cross(c - a).dot((a + b + c) / 3.0 - e.center) < 0.0 {
+            f.swap(1, 2);
+        }
+    }
+    ellip::Mesh::new(positions, faces).unwrap()
+}
+
+/// A region of a real mesh, through `MeshScale::of_mesh`, mesh vertex normals and area
+/// weighting: scaling the whole mesh by 10⁻³ or 10³ scales the fit and nothing else.
+#[test]
+fn scaled_meshes_give_the_same_fit_up_to_scale() {
+    let truth = Ellipsoid {
+        center: DVec3::new(0.5, -0.3, 0.2),
+        rotation: DQuat::from_euler(glam::EulerRot::XYZ, 0.3, 0.5, -0.2),
+        radii: DVec3::new(2.0, 1.0, 0.6),
+        sign: Sign::Positive,
+    };
+    let mesh = uv_ellipsoid_mesh(&truth, 40, 80);
+    let direction = DVec3::new(1.0, 1.0, 0.3).normalize();
+    let region: Vec<[u32; 3]> = (0..mesh.face_count())
+        .filter(|&f| {
+            (mesh.face_centroid(f) - truth.center)
+                .normalize()
+                .dot(direction)
+                > 0.5
+        })
+        .map(|f| mesh.faces()[f])
+        .collect();
+    let fit_scaled = |k: f64| {
+        let m = mesh.map_positions(|p| p * k).unwrap();
+        let normals = m.vertex_normals();
+        // Exact curvature of the scaled ellipsoid.
+        let scaled_truth = Ellipsoid {
+            center: truth.center * k,
+            radii: truth.radii * k,
+            ..truth
+        };
+        let curvatures: Vec<f64> = m
+            .positions()
+            .iter()
+            .map(|&p| scaled_truth.mean_curvature(p))
+            .collect();
+        let attrs = SurfaceAttributes::new(m.positions(), &normals, &curvatures).unwrap();
+        let scale = MeshScale::of_mesh(&m);
+        let samples = gather_region(&attrs, &region, FaceWeighting::area(&scale));
+        let input = FitInput::new(&samples.points, &samples.normals, &samples.curvatures)
+            .unwrap()
+            .with_weights(&samples.weights)
+            .unwrap();
+        let fit = fit_ellipsoid(&input, &FitOptions::surface(&scale));
+        (fit, samples.points)
+    };
+    let (base, points) = fit_scaled(1.0);
+    assert_finite(&base);
+    let diameter = Samples {
+        points: points.clone(),
+        ..Default::default()
+    }
+    .diameter();
+    let rms = rms_radial_distance(&base.ellipsoid, &points) / diameter;
+    eprintln!("UV-mesh cap with mesh normals: RMS radial distance / diameter {rms:.2e}");
+    assert!(rms < 1e-3, "{rms}");
+    for k in [1e-3, 1e3] {
+        let (fit, _) = fit_scaled(k);
+        let r = base.ellipsoid.radii.max_element();
+        assert_eq!(fit.ellipsoid.sign, base.ellipsoid.sign);
+        assert!((fit.ellipsoid.center / k - base.ellipsoid.center).length() < 1e-6 * r);
+        assert!((fit.ellipsoid.radii / k - base.ellipsoid.radii).length() < 1e-6 * r);
+        assert!(
+            (fit.error - base.error).abs() < 1e-6 * base.error,
+            "{} vs {}",
+            fit.error,
+            base.error
+        );
+    }
+}
+
 #[test]
 fn flat_patches_hit_the_documented_radius_cap() {
     let mut s = Samples::default();
@@ -470,6 +578,13 @@ fn degenerate_regions_give_finite_ellipsoids() {
     wild.curvatures[6] = f64::INFINITY;
     wild.normals[7] = DVec3::splat(f64::NEG_INFINITY);
     cases.push(wild);
+    // Far from the origin, in large units.
+    let mut far = many.clone();
+    far.points
+        .iter_mut()
+        .for_each(|p| *p = *p * 1e3 + DVec3::splat(1e9));
+    far.curvatures.iter_mut().for_each(|h| *h /= 1e3);
+    cases.push(far);
     for s in &cases {
         let fit = fit_ellipsoid(&s.input(), &options);
         assert_finite(&fit);
