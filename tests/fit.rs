@@ -726,6 +726,11 @@ fn octants_of_shared_meshes_fit_finitely() {
         let curvatures = ellip::mesh::curvature::mean_curvature(&mesh);
         let attrs = SurfaceAttributes::new(mesh.positions(), &normals, &curvatures).unwrap();
         let scale = MeshScale::of_mesh(&mesh);
+        // The hull contains the solid.
+        let whole_hull = convex_hull_volume(mesh.positions());
+        if let Some(v) = mesh.volume() {
+            assert!(whole_hull >= v.abs() * (1.0 - 1e-9), "{whole_hull} < {v}");
+        }
         let centre = mesh.bounding_box().unwrap().center();
         let mut octants: Vec<Vec<[u32; 3]>> = vec![Vec::new(); 8];
         for (f, &face) in mesh.faces().iter().enumerate() {
