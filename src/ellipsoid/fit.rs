@@ -197,9 +197,10 @@ pub struct FitOptions {
     pub signs: SignChoice,
     /// Fresh starts to try.
     pub starts: Starts,
-    /// With a warm start, also try the fresh starts for the warm start's own sign (and keep
-    /// the best); `false` is the segmentation's fast path. The other sign always gets fresh
-    /// starts as well.
+    /// With a warm start, also try every fresh start (and keep the best). `false` is the
+    /// segmentation's fast path: the warm start alone for its own sign, and for the other
+    /// sign only the oriented-point sphere (or, when the patch does not bend that way, the
+    /// warm geometry).
     pub fresh_starts_with_warm: bool,
     /// Largest radius, in units of `scale` (default 10³).
     pub max_radius: f64,
@@ -522,27 +523,36 @@ impl Canonical {
         let s = sign.factor();
         let mut starts: [Option<Params>; 5] = [None; 5];
         starts[0] = self.start;
-        // A warm start of the other sign is a poor guess for this one: start fresh too.
-        let fresh = self.start.is_none()
-            || self.options.fresh_starts_with_warm
-            || self.start_sign != Some(sign);
-        if fresh {
-            let st = self.options.starts;
-            let axes = self.principal_axes();
-            if st.principal_axes {
-                starts[1] = Some(axes);
+        match self.start {
+            // The fast path: the warm start alone for its own sign; for the other sign the
+            // oriented sphere, which only exists when the patch bends that way (else the
+            // warm geometry, flipped).
+            Some(warm) if !self.options.fresh_starts_with_warm => {
+                if self.start_sign != Some(sign) {
+                    if let Some(sphere) = self.oriented_sphere(s, warm.rot) {
+                        starts[0] = None;
+                        starts[2] = Some(sphere);
+                    }
+                }
             }
-            if st.oriented_sphere {
-                starts[2] = self.oriented_sphere(s, axes.rot);
-            }
-            if st.algebraic_sphere {
-                starts[3] = self.algebraic_sphere(axes.rot);
-            }
-            if st.quadric {
-                starts[4] = self.quadric();
-            }
-            if starts.iter().all(Option::is_none) {
-                starts[1] = Some(axes);
+            _ => {
+                let st = self.options.starts;
+                let axes = self.principal_axes();
+                if st.principal_axes {
+                    starts[1] = Some(axes);
+                }
+                if st.oriented_sphere {
+                    starts[2] = self.oriented_sphere(s, axes.rot);
+                }
+                if st.algebraic_sphere {
+                    starts[3] = self.algebraic_sphere(axes.rot);
+                }
+                if st.quadric {
+                    starts[4] = self.quadric();
+                }
+                if starts.iter().all(Option::is_none) {
+                    starts[1] = Some(axes);
+                }
             }
         }
         let mut best: Option<(Params, f64, f64, bool)> = None;
