@@ -199,8 +199,9 @@ pub struct FitOptions {
     pub starts: Starts,
     /// With a warm start, also try every fresh start (and keep the best). `false` is the
     /// segmentation's fast path: the warm start alone for its own sign, and for the other
-    /// sign only the oriented-point sphere (or, when the patch does not bend that way, the
-    /// warm geometry).
+    /// sign only the oriented-point sphere — with both signs asked for, that sign is not
+    /// fitted at all when the patch does not bend its way (the sphere's radius comes out
+    /// non-positive).
     pub fresh_starts_with_warm: bool,
     /// Largest radius, in units of `scale` (default 10³).
     pub max_radius: f64,
@@ -272,7 +273,9 @@ pub fn fit_ellipsoid(input: &FitInput<'_>, options: &FitOptions) -> Fit {
     };
     let mut best: Option<Fit> = None;
     for &sign in signs {
-        let params = problem.solve(sign);
+        let Some(params) = problem.solve(sign) else {
+            continue;
+        };
         let ellipsoid = problem.to_world(&params, sign);
         let error = evaluate_error(input, options, &ellipsoid);
         if best.is_none_or(|b| error < b.error) {
@@ -310,8 +313,8 @@ pub fn evaluate_error(input: &FitInput<'_>, options: &FitOptions, e: &Ellipsoid)
     }
 }
 
-/// The answer for inputs without usable samples: a sphere of a tenth of the scale at their
-/// centroid (or the origin), with its (finite) error.
+/// The answer for inputs without usable samples: the warm start, else a sphere of a tenth of
+/// the scale at their centroid (or the origin), with its (finite) error.
 fn degenerate_fit(input: &FitInput<'_>, options: &FitOptions) -> Fit {
     let finite: Vec<DVec3> = input
         .points
@@ -329,9 +332,12 @@ fn degenerate_fit(input: &FitInput<'_>, options: &FitOptions) -> Fit {
     } else {
         1.0
     };
-    let ellipsoid = input
+    let mut ellipsoid = input
         .start
         .unwrap_or_else(|| Ellipsoid::sphere(center, 0.1 * scale));
+    if let SignChoice::Only(sign) = options.signs {
+        ellipsoid.sign = sign;
+    }
     Fit {
         ellipsoid,
         error: evaluate_error(input, options, &ellipsoid),
@@ -519,19 +525,24 @@ impl Canonical {
     }
 
     /// Minimise for one sign from every start; the best start continues to convergence.
-    fn solve(&self, sign: Sign) -> Params {
+    fn solve(&self, sign: Sign) -> Option<Params> {
         let s = sign.factor();
         let mut starts: [Option<Params>; 5] = [None; 5];
         starts[0] = self.start;
         match self.start {
             // The fast path: the warm start alone for its own sign; for the other sign the
-            // oriented sphere, which only exists when the patch bends that way (else the
-            // warm geometry, flipped).
+            // oriented sphere, which only exists when the patch bends that way — when it
+            // does not, that sign is skipped.
             Some(warm) if !self.options.fresh_starts_with_warm => {
                 if self.start_sign != Some(sign) {
-                    if let Some(sphere) = self.oriented_sphere(s, warm.rot) {
-                        starts[0] = None;
-                        starts[2] = Some(sphere);
+                    match self.oriented_sphere(s, warm.rot) {
+                        Some(sphere) => {
+                            starts[0] = None;
+                            starts[2] = Some(sphere);
+                        }
+                        None if self.options.signs == SignChoice::Both => return None,
+                        // Asked for this sign alone: from the warm geometry.
+                        None => {}
                     }
                 }
             }
@@ -569,19 +580,19 @@ impl Canonical {
                 best = Some((x, cost, lambda, done));
             }
         }
-        let Some((x, _, lambda, done)) = best else {
-            return self.principal_axes();
-        };
+        let (x, _, lambda, done) = best?;
         // Converged on the probe samples is converged only if they are all the samples.
         if done && self.probe_samples.len() == self.samples.len() {
-            return x;
+            return Some(x);
         }
         let rest = self
             .options
             .max_iterations
             .saturating_sub(self.options.probe_iterations);
-        self.levenberg_marquardt(&self.samples, x, s, lambda, rest)
-            .0
+        Some(
+            self.levenberg_marquardt(&self.samples, x, s, lambda, rest)
+                .0,
+        )
     }
 
     /// The weighted centroid (the canonical origin) and principal axes (section 4), radii
