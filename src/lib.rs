@@ -14,9 +14,11 @@
 //! | analyse | [`mesh`] | topology, normals, areas, volume, genus, [`mesh::curvature`] |
 //! | export | [`export`] | writes OBJ, glTF/GLB, PLY atomically |
 //! | fixtures | [`synth`] | known shapes and blobs of known ellipsoids, for tests |
+//! | fit | [`ellipsoid`] | the ellipsoid primitive, the paper's error metrics, robust fitting |
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod ellipsoid;
 pub mod export;
 pub mod import;
 pub mod mesh;
