@@ -718,10 +718,9 @@ fn octants_of_shared_meshes_fit_finitely() {
         .collect();
     paths.sort();
     for path in paths {
-        let Some(mesh) = load_mesh(&path) else {
-            eprintln!("{}: could not be read", path.display());
-            continue;
-        };
+        let mesh = ellip::import::read_mesh(&path, &Default::default())
+            .unwrap_or_else(|e| panic!("{e}"))
+            .mesh;
         let normals = mesh.vertex_normals();
         let curvatures = ellip::mesh::curvature::mean_curvature(&mesh);
         let attrs = SurfaceAttributes::new(mesh.positions(), &normals, &curvatures).unwrap();
@@ -753,36 +752,4 @@ fn octants_of_shared_meshes_fit_finitely() {
         }
         eprintln!("{}: 8 octants fit", path.display());
     }
-}
-
-/// The mesh at `path`: through ellip's importer, or, while its OBJ reader is not there yet,
-/// through `tobj` with degenerate triangles dropped.
-fn load_mesh(path: &std::path::Path) -> Option<ellip::Mesh> {
-    if let Ok(imported) = ellip::import::read_mesh(path, &Default::default()) {
-        return Some(imported.mesh);
-    }
-    let options = tobj::LoadOptions {
-        triangulate: true,
-        single_index: true,
-        ..Default::default()
-    };
-    let (models, _) = tobj::load_obj(path, &options).ok()?;
-    let mut positions = Vec::new();
-    let mut faces = Vec::new();
-    for m in models {
-        let base = u32::try_from(positions.len()).ok()?;
-        positions.extend(
-            m.mesh
-                .positions
-                .chunks_exact(3)
-                .map(|c| DVec3::new(f64::from(c[0]), f64::from(c[1]), f64::from(c[2]))),
-        );
-        for t in m.mesh.indices.chunks_exact(3) {
-            let f = [base + t[0], base + t[1], base + t[2]];
-            if f[0] != f[1] && f[1] != f[2] && f[0] != f[2] {
-                faces.push(f);
-            }
-        }
-    }
-    ellip::Mesh::new(positions, faces).ok()
 }
