@@ -15,14 +15,18 @@
 //! | export | [`export`] | writes OBJ, glTF/GLB, PLY atomically |
 //! | fixtures | [`synth`] | known shapes and blobs of known ellipsoids, for tests |
 //! | fit | [`ellipsoid`] | the ellipsoid primitive, the paper's error metrics, robust fitting |
+//! | segment | [`segment`] | Lloyd iteration into connected regions, each with its ellipsoid |
+//! | boundaries | [`boundary`] | arcs, junctions and cycles between regions; their smoothing |
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod boundary;
 pub mod ellipsoid;
 pub mod export;
 pub mod import;
 pub mod mesh;
 pub mod rng;
+pub mod segment;
 pub mod synth;
 
 mod atomic;

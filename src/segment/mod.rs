@@ -1,0 +1,208 @@
+//! Segmentation, the encoder's core: K connected regions of faces, each with the proxy
+//! (ellipsoid, or plane for comparison) that fits it best.
+//!
+//! Simari & Singh 2005, section 4, extending the Lloyd iteration of Variational Shape
+//! Approximation (Cohen-Steiner, Alliez & Desbrun, SIGGRAPH 2004): fit every region's proxy,
+//! then regrow all regions by priority-queue flooding from each region's best-fitting face so
+//! that regions stay connected and every face is assigned; regions are added one at a time at
+//! the worst-fitting face (seeding), and teleported when the error stops improving. The best
+//! segmentation seen is kept.
+//!
+//! The loop ([`segment_with`]) is independent of the primitive: a [`ProxyMetric`] fits a proxy
+//! to a set of faces and measures one face against a proxy. [`EllipsoidMetric`] is the
+//! paper's metric; [`PlaneMetric`] is VSA's L²,¹ metric, so that planes and ellipsoids can be
+//! compared with one tool.
+
+mod lloyd;
+pub mod plane;
+pub mod proxy;
+
+pub use plane::{Plane, PlaneMetric};
+pub use proxy::{EllipsoidMetric, ProxyMetric};
+
+use crate::ellipsoid::Ellipsoid;
+use crate::mesh::Mesh;
+use serde::Serialize;
+
+/// How many regions to make.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub enum RegionCount {
+    /// Exactly this many (at least one per connected component).
+    Fixed(usize),
+    /// As few as reach this RMS radial error, as a fraction of the bounding-box diagonal
+    /// (at most [`SegmentOptions::max_regions`]).
+    Tolerance(f64),
+}
+
+/// What the ellipsoids approximate (sections 2 and 3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Mode {
+    /// The surface: the composite α·E_euc + β·E_ang + γ·E_cur metric.
+    Surface,
+    /// The volume: α·E_euc + δ·(V(R) − 4/3·πabc)², with V(R) the region's convex hull.
+    Volume,
+}
+
+/// Replacements for the paper's default weights; `None` keeps the default (see
+/// [`crate::ellipsoid::metric::Weights::paper`]: α = 1/ā², β = 1.2, γ = 5·10⁻⁴ in canonical
+/// units, δ = 10⁵/V²).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct WeightOverrides {
+    /// α, the Euclidean weight.
+    pub alpha: Option<f64>,
+    /// β, the normal weight.
+    pub beta: Option<f64>,
+    /// γ, the curvature weight (canonical units).
+    pub gamma: Option<f64>,
+    /// δ, the volume weight (volume mode).
+    pub delta: Option<f64>,
+}
+
+/// Options of [`segment`]. Every field has a documented default ([`Default`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SegmentOptions {
+    /// Number of regions, or an error tolerance that chooses it (default `Fixed(12)`).
+    pub regions: RegionCount,
+    /// Most Lloyd iterations after seeding (default 50).
+    pub max_iterations: usize,
+    /// Weight overrides (default: the paper's weights).
+    pub weights: WeightOverrides,
+    /// Surface or volume (default surface).
+    pub mode: Mode,
+    /// Allow negative ellipsoids (inner surfaces, for concavities; default true).
+    pub allow_negative: bool,
+    /// Weight each face's error by its area (default false: the paper's plain sum).
+    pub area_weighting: bool,
+    /// Seed of the random choices (default 1).
+    pub seed: u64,
+    /// Worker threads; `None` uses all cores (default). The result does not depend on it.
+    pub threads: Option<usize>,
+    /// Most regions a tolerance may ask for (default 256).
+    pub max_regions: usize,
+}
+
+impl Default for SegmentOptions {
+    fn default() -> Self {
+        SegmentOptions {
+            regions: RegionCount::Fixed(12),
+            max_iterations: 50,
+            weights: WeightOverrides::default(),
+            mode: Mode::Surface,
+            allow_negative: true,
+            area_weighting: false,
+            seed: 1,
+            threads: None,
+            max_regions: 256,
+        }
+    }
+}
+
+/// The result: a region label for every face and a proxy for every region.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Segmentation<P> {
+    /// Region of each face, in `0..proxies.len()`. Every region is edge-connected.
+    pub labels: Vec<u32>,
+    /// The proxy of each region.
+    pub proxies: Vec<P>,
+    /// The error of each region against its proxy.
+    pub region_errors: Vec<f64>,
+    /// Sum of the region errors.
+    pub total_error: f64,
+    /// Total error after each iteration (seeding included), for plots and tests.
+    pub history: Vec<f64>,
+    /// Iterations run.
+    pub iterations: usize,
+}
+
+impl<P> Segmentation<P> {
+    /// Number of regions.
+    pub fn region_count(&self) -> usize {
+        self.proxies.len()
+    }
+
+    /// The faces of each region, in increasing order.
+    pub fn faces_by_region(&self) -> Vec<Vec<u32>> {
+        let mut out = vec![Vec::new(); self.proxies.len()];
+        for (f, &r) in self.labels.iter().enumerate() {
+            out[r as usize].push(f as u32);
+        }
+        out
+    }
+}
+
+/// What the loop reports while it runs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Progress {
+    /// Iteration number (0 while seeding).
+    pub iteration: usize,
+    /// Most iterations.
+    pub max_iterations: usize,
+    /// Regions so far.
+    pub regions: usize,
+    /// Total error of the current segmentation.
+    pub error: f64,
+    /// Lowest total error seen.
+    pub best_error: f64,
+}
+
+/// Why a mesh could not be segmented.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SegmentError {
+    /// The mesh has no faces.
+    #[error("the mesh has no faces")]
+    EmptyMesh,
+    /// Fewer regions asked for than the mesh has connected components.
+    #[error("{requested} regions asked for, but the mesh has {components} separate components and each needs at least one")]
+    TooFewRegions {
+        /// Regions asked for.
+        requested: usize,
+        /// Connected components.
+        components: usize,
+    },
+    /// More regions asked for than there are faces.
+    #[error("{requested} regions asked for, but the mesh has only {faces} faces")]
+    TooManyRegions {
+        /// Regions asked for.
+        requested: usize,
+        /// Faces.
+        faces: usize,
+    },
+    /// An option is out of its range.
+    #[error("invalid option {what}: {value}")]
+    InvalidOption {
+        /// The option.
+        what: &'static str,
+        /// Its value, as text.
+        value: String,
+    },
+}
+
+/// Segments a mesh into ellipsoidal regions with the paper's metric.
+pub fn segment(
+    mesh: &Mesh,
+    options: &SegmentOptions,
+) -> Result<Segmentation<Ellipsoid>, SegmentError> {
+    let metric = EllipsoidMetric::new(mesh, options)?;
+    segment_with(mesh, &metric, options, &mut |_| {})
+}
+
+/// Segments a mesh into planar regions with VSA's L²,¹ metric, for comparison.
+pub fn segment_planes(
+    mesh: &Mesh,
+    options: &SegmentOptions,
+) -> Result<Segmentation<Plane>, SegmentError> {
+    let metric = PlaneMetric::new(mesh);
+    segment_with(mesh, &metric, options, &mut |_| {})
+}
+
+/// The Lloyd loop with any metric, reporting progress after every iteration.
+pub fn segment_with<M: ProxyMetric>(
+    mesh: &Mesh,
+    metric: &M,
+    options: &SegmentOptions,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Segmentation<M::Proxy>, SegmentError> {
+    lloyd::run(mesh, metric, options, progress)
+}
