@@ -5,7 +5,8 @@
 //! indices when every index fits, else `UNSIGNED_INT` (§3.7.2.2: the all-ones value is
 //! reserved); GLB chunks padded to 4 bytes, JSON with spaces and BIN with zeros (§4.4.3).
 
-use super::{angle_weighted_normals, invalid, Checked, ExportError};
+use super::{invalid, Checked, ExportError};
+use crate::mesh::angle_weighted_normals;
 use base64::Engine;
 use glam::{DVec3, Vec3};
 use serde_json::{json, Value};

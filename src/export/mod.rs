@@ -280,69 +280,9 @@ fn invalid(what: &'static str, detail: String) -> ExportError {
     ExportError::InvalidData { what, detail }
 }
 
-/// Angle-weighted vertex normals (Thürmer & Wüthrich 1998) of checked data, computed as
-/// [`Mesh::vertex_normals`] does, for data that does not come with a [`Mesh`]: each incident
-/// face's unit normal weighted by the corner angle at the vertex, falling back to the
-/// area-weighted normal and then to +z. Always unit length.
-fn angle_weighted_normals(positions: &[DVec3], triangles: &[[u32; 3]]) -> Vec<DVec3> {
-    let mut angle_weighted = vec![DVec3::ZERO; positions.len()];
-    let mut area_weighted = vec![DVec3::ZERO; positions.len()];
-    for triangle in triangles {
-        // `check` guarantees every index is in range; `get` keeps that a non-panicking fact.
-        let corner = |k: usize| positions.get(triangle[k] as usize).copied();
-        let (Some(a), Some(b), Some(c)) = (corner(0), corner(1), corner(2)) else {
-            continue;
-        };
-        let p = [a, b, c];
-        let area_vector = (b - a).cross(c - a);
-        let normal = area_vector.normalize_or_zero();
-        for (k, &v) in triangle.iter().enumerate() {
-            let angle = (p[(k + 1) % 3] - p[k]).angle_between(p[(k + 2) % 3] - p[k]);
-            if let (Some(aw), Some(arw)) = (
-                angle_weighted.get_mut(v as usize),
-                area_weighted.get_mut(v as usize),
-            ) {
-                if angle.is_finite() {
-                    *aw += angle * normal;
-                }
-                *arw += area_vector;
-            }
-        }
-    }
-    angle_weighted
-        .iter()
-        .zip(&area_weighted)
-        .map(|(a, b)| {
-            a.try_normalize()
-                .or_else(|| b.try_normalize())
-                .unwrap_or(DVec3::Z)
-        })
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// The normals computed for data without a mesh are those of `Mesh::vertex_normals`.
-    #[test]
-    fn computed_normals_match_mesh_vertex_normals() {
-        // An open, irregular patch: a fan around vertex 0 plus a skinny triangle.
-        let positions = vec![
-            DVec3::new(0.0, 0.0, 0.3),
-            DVec3::new(1.0, 0.0, 0.0),
-            DVec3::new(0.2, 1.1, 0.1),
-            DVec3::new(-0.9, 0.3, -0.2),
-            DVec3::new(-0.1, -1.2, 0.4),
-            DVec3::new(2.0, 0.01, 0.0),
-        ];
-        let faces = vec![[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 1], [1, 5, 2]];
-        let mesh = Mesh::new(positions.clone(), faces.clone()).unwrap();
-        let ours = angle_weighted_normals(&positions, &faces);
-        for (a, b) in ours.iter().zip(mesh.vertex_normals()) {
-            assert!((*a - b).length() < 1e-15, "{a} vs {b}");
-        }
-    }
 
     #[test]
     fn uri_encoding_keeps_unreserved_and_escapes_the_rest() {

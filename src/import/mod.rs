@@ -409,6 +409,11 @@ fn is_off_keyword(bytes: &[u8]) -> bool {
             .all(|b| b"STCN4n".contains(b))
 }
 
+/// A whitespace-free word of a text format read as a number; `None` when it is not one.
+pub(crate) fn parse_word<T: std::str::FromStr>(word: &[u8]) -> Option<T> {
+    std::str::from_utf8(word).ok()?.parse().ok()
+}
+
 /// Shortens a token for an error message.
 pub(crate) fn excerpt(bytes: &[u8]) -> String {
     let text = String::from_utf8_lossy(&bytes[..bytes.len().min(40)]);

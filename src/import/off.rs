@@ -12,7 +12,7 @@
 //! every colour convention in the wild reads the same. Counts are checked against the limits
 //! and the bytes left before anything is allocated.
 
-use super::{check_limit, excerpt, ImportLimits, Location, ParseError, Problem, Soup};
+use super::{check_limit, excerpt, parse_word, ImportLimits, Location, ParseError, Problem, Soup};
 use glam::DVec3;
 
 /// Fewest bytes a vertex line can take (`0 0 0\n`).
@@ -120,7 +120,7 @@ fn read_count(
     at: Location,
 ) -> Result<u64, ParseError> {
     let word = word.unwrap_or_default();
-    parse_u64(word).ok_or_else(|| {
+    parse_word::<u64>(word).ok_or_else(|| {
         ParseError::at(
             at,
             Problem::Syntax {
@@ -148,7 +148,7 @@ fn read_vertices(lines: &mut Lines<'_>, count: u64, soup: &mut Soup) -> Result<(
         let mut p = [0.0; 3];
         for c in &mut p {
             let word = words.next().unwrap_or_default();
-            *c = parse_f64(word).ok_or_else(|| {
+            *c = parse_word::<f64>(word).ok_or_else(|| {
                 ParseError::at(
                     at,
                     Problem::Syntax {
@@ -188,7 +188,7 @@ fn read_faces(
         };
         let at = Location::Line(lines.line);
         let word = words.next().unwrap_or_default();
-        let n = parse_u64(word).ok_or_else(|| {
+        let n = parse_word::<u64>(word).ok_or_else(|| {
             ParseError::at(
                 at,
                 Problem::Syntax {
@@ -202,7 +202,7 @@ fn read_faces(
         }
         let mut read_index = || -> Result<u32, ParseError> {
             let word = words.next().unwrap_or_default();
-            let index = parse_i64(word).ok_or_else(|| {
+            let index = parse_word::<i64>(word).ok_or_else(|| {
                 ParseError::at(
                     at,
                     Problem::Syntax {
@@ -251,18 +251,6 @@ fn read_faces(
 /// A count already checked against the bytes present, as a `usize`.
 fn to_usize(count: u64) -> usize {
     usize::try_from(count).unwrap_or(usize::MAX)
-}
-
-fn parse_u64(word: &[u8]) -> Option<u64> {
-    std::str::from_utf8(word).ok()?.parse().ok()
-}
-
-fn parse_i64(word: &[u8]) -> Option<i64> {
-    std::str::from_utf8(word).ok()?.parse().ok()
-}
-
-fn parse_f64(word: &[u8]) -> Option<f64> {
-    std::str::from_utf8(word).ok()?.parse().ok()
 }
 
 /// The lines of a text file that hold something other than whitespace and comments.

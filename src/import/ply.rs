@@ -23,7 +23,7 @@
 //! every record takes at least its fixed-size properties and list lengths (binary) or two
 //! bytes per property (ASCII: a value and a separator).
 
-use super::{check_limit, excerpt, ImportLimits, Location, ParseError, Problem, Soup};
+use super::{check_limit, excerpt, parse_word, ImportLimits, Location, ParseError, Problem, Soup};
 use glam::DVec3;
 
 /// Parses a PLY file.
@@ -196,7 +196,7 @@ fn read_header(bytes: &[u8]) -> Result<Header<'_>, ParseError> {
                 let (Some(name), Some(count)) = (words.next(), words.next()) else {
                     return Err(bad_header(at, "an element needs a name and a count".into()));
                 };
-                let count = parse_u64(count)
+                let count = parse_word::<u64>(count)
                     .ok_or_else(|| bad_header(at, format!("element count {:?}", excerpt(count))))?;
                 elements.push(Element {
                     name,
@@ -836,8 +836,8 @@ impl Body for AsciiBody<'_> {
 
     fn read_int(&mut self, _ty: Scalar, expected: &'static str) -> Result<i64, ParseError> {
         let word = self.word(expected)?;
-        parse_i64(word)
-            .or_else(|| parse_f64(word).and_then(float_to_int))
+        parse_word::<i64>(word)
+            .or_else(|| parse_word::<f64>(word).and_then(float_to_int))
             .ok_or_else(|| self.syntax(expected, word))
     }
 
@@ -893,18 +893,6 @@ fn trim_end(line: &[u8]) -> &[u8] {
 
 fn bad_header(line: u64, reason: String) -> ParseError {
     ParseError::at(Location::Line(line), Problem::BadHeader { reason })
-}
-
-fn parse_u64(word: &[u8]) -> Option<u64> {
-    std::str::from_utf8(word).ok()?.parse().ok()
-}
-
-fn parse_i64(word: &[u8]) -> Option<i64> {
-    std::str::from_utf8(word).ok()?.parse().ok()
-}
-
-fn parse_f64(word: &[u8]) -> Option<f64> {
-    std::str::from_utf8(word).ok()?.parse().ok()
 }
 
 #[cfg(test)]

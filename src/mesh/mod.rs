@@ -221,36 +221,9 @@ impl Mesh {
         (a + b + c) / 3.0
     }
 
-    /// Angle-weighted vertex normals (Thürmer & Wüthrich 1998): each incident face's normal
-    /// weighted by the corner angle at the vertex. Always unit length: a vertex whose faces
-    /// cancel out or are all degenerate falls back to its area-weighted normal, then to +z.
+    /// Angle-weighted vertex normals; see [`angle_weighted_normals`].
     pub fn vertex_normals(&self) -> Vec<DVec3> {
-        let mut angle_weighted = vec![DVec3::ZERO; self.positions.len()];
-        let mut area_weighted = vec![DVec3::ZERO; self.positions.len()];
-        for (f, face) in self.faces.iter().enumerate() {
-            let area_vector = self.face_area_vector(f);
-            let normal = area_vector.normalize_or_zero();
-            let p = self.corners(f);
-            for k in 0..3 {
-                let e1 = p[(k + 1) % 3] - p[k];
-                let e2 = p[(k + 2) % 3] - p[k];
-                let angle = e1.angle_between(e2);
-                let v = face[k] as usize;
-                if angle.is_finite() {
-                    angle_weighted[v] += angle * normal;
-                }
-                area_weighted[v] += area_vector;
-            }
-        }
-        angle_weighted
-            .iter()
-            .zip(&area_weighted)
-            .map(|(a, b)| {
-                a.try_normalize()
-                    .or_else(|| b.try_normalize())
-                    .unwrap_or(DVec3::Z)
-            })
-            .collect()
+        angle_weighted_normals(&self.positions, &self.faces)
     }
 
     /// Bounding box; `None` for a mesh without vertices.
@@ -325,6 +298,45 @@ impl Mesh {
             topology: self.topology.clone(),
         })
     }
+}
+
+/// Angle-weighted vertex normals (Thürmer & Wüthrich 1998) of any positions and triangles:
+/// each incident face's unit normal weighted by the corner angle at the vertex, falling back
+/// to the area-weighted normal and then to +z, so always unit length. Triangles with an index
+/// out of range are ignored. [`Mesh::vertex_normals`] is this on a mesh.
+pub fn angle_weighted_normals(positions: &[DVec3], triangles: &[[u32; 3]]) -> Vec<DVec3> {
+    let mut angle_weighted = vec![DVec3::ZERO; positions.len()];
+    let mut area_weighted = vec![DVec3::ZERO; positions.len()];
+    for triangle in triangles {
+        let corner = |k: usize| positions.get(triangle[k] as usize).copied();
+        let (Some(a), Some(b), Some(c)) = (corner(0), corner(1), corner(2)) else {
+            continue;
+        };
+        let p = [a, b, c];
+        let area_vector = (b - a).cross(c - a);
+        let normal = area_vector.normalize_or_zero();
+        for (k, &v) in triangle.iter().enumerate() {
+            let angle = (p[(k + 1) % 3] - p[k]).angle_between(p[(k + 2) % 3] - p[k]);
+            if let (Some(aw), Some(arw)) = (
+                angle_weighted.get_mut(v as usize),
+                area_weighted.get_mut(v as usize),
+            ) {
+                if angle.is_finite() {
+                    *aw += angle * normal;
+                }
+                *arw += area_vector;
+            }
+        }
+    }
+    angle_weighted
+        .iter()
+        .zip(&area_weighted)
+        .map(|(a, b)| {
+            a.try_normalize()
+                .or_else(|| b.try_normalize())
+                .unwrap_or(DVec3::Z)
+        })
+        .collect()
 }
 
 #[cfg(test)]
