@@ -54,14 +54,21 @@ pub trait ProxyMetric: Sync {
 
 /// Most solver iterations of a warm-started fit. The loop refits every region in every
 /// iteration from its last proxy, so the fits converge across iterations; measured on the
-/// blob fixtures and koala (100K faces, K = 32), 8 iterations on 512 samples reach the same
-/// segmentations as 100 on 2048 at a quarter of the time.
+/// blob fixtures and koala (100K faces, K = 32), 8 iterations on 256 samples reach
+/// segmentations as good as 100 on 2048 at a third of the time. (Fresh fits are not cut
+/// down the same way: with 30 iterations instead of 100, blob3's seeding went wrong.)
 pub const WARM_MAX_ITERATIONS: u32 = 8;
 /// Most samples a warm-started fit iterates on (the error is still measured on all).
-pub const WARM_SOLVER_POINTS: usize = 512;
+pub const WARM_SOLVER_POINTS: usize = 256;
 /// Probe iterations of a warm-started fit (its two starts: the warm one, and the sphere of
 /// the other sign when the region bends that way).
 pub const WARM_PROBE_ITERATIONS: u32 = 3;
+
+/// Most solver iterations of a fit from scratch (new and re-seeded regions); the
+/// iterations that follow refine it.
+pub const FRESH_MAX_ITERATIONS: u32 = 100;
+/// Most samples a fit from scratch iterates on.
+pub const FRESH_SOLVER_POINTS: usize = 1024;
 
 /// The paper's metric (sections 2 and 3), with the mesh's normals and curvatures computed once.
 ///
@@ -155,6 +162,8 @@ impl EllipsoidMetric {
         };
         let mut fresh = FitOptions::surface(&scale);
         fresh.weights = weights;
+        fresh.max_iterations = FRESH_MAX_ITERATIONS;
+        fresh.max_solver_points = FRESH_SOLVER_POINTS;
         fresh.signs = if options.allow_negative && delta.is_none() {
             SignChoice::Both
         } else {
