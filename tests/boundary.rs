@@ -325,30 +325,74 @@ fn check_invariants(
             }
         }
     }
-    // Map each cycle to its piece through the face running its first edge.
+    // Map each cycle to its piece through a face of its region running one of its edges.
+    // Where two faces of the region run the same edge the same way (a non-manifold or
+    // inconsistently oriented edge) that edge does not tell; a cycle made only of such edges
+    // makes its region checked as a whole instead of piece by piece.
     let mut cycles_of = vec![0i64; piece_count];
     let mut outers_of = vec![0i64; piece_count];
+    let mut ambiguous: HashMap<u32, (i64, i64)> = HashMap::new();
     for (r, cycles) in graph.cycles.iter().enumerate() {
         for cycle in cycles {
-            let (a, b) = use_edges(graph, cycle.arcs[0].arc, cycle.arcs[0].reversed)[0];
-            let f = mesh
-                .topology()
-                .faces_around(a)
-                .iter()
-                .map(|&f| f as usize)
-                .find(|&f| {
-                    labels[f] == r as u32
-                        && (0..3).any(|i| faces[f][i] == a && faces[f][(i + 1) % 3] == b)
-                })
-                .unwrap_or_else(|| panic!("{what}: region {r} runs no edge {a}->{b}"));
-            cycles_of[piece[f]] += 1;
-            outers_of[piece[f]] += i64::from(cycle.outer);
+            let mut found = None;
+            'edges: for u in &cycle.arcs {
+                for (a, b) in use_edges(graph, u.arc, u.reversed) {
+                    let candidates: BTreeSet<usize> = mesh
+                        .topology()
+                        .faces_around(a)
+                        .iter()
+                        .map(|&f| f as usize)
+                        .filter(|&f| {
+                            labels[f] == r as u32
+                                && (0..3).any(|i| faces[f][i] == a && faces[f][(i + 1) % 3] == b)
+                        })
+                        .map(|f| piece[f])
+                        .collect();
+                    assert!(
+                        !candidates.is_empty(),
+                        "{what}: region {r} runs no edge {a}->{b}"
+                    );
+                    if candidates.len() == 1 {
+                        found = candidates.first().copied();
+                        break 'edges;
+                    }
+                }
+            }
+            match found {
+                Some(p) => {
+                    cycles_of[p] += 1;
+                    outers_of[p] += i64::from(cycle.outer);
+                }
+                None => {
+                    let e = ambiguous.entry(r as u32).or_default();
+                    e.0 += 1;
+                    e.1 += i64::from(cycle.outer);
+                }
+            }
         }
+    }
+    // Per region, when ambiguous: sums over its pieces.
+    let mut region_sums: HashMap<u32, [i64; 5]> = HashMap::new();
+    let mut region_of_piece = vec![0u32; piece_count];
+    for f in 0..faces.len() {
+        region_of_piece[piece[f]] = labels[f];
     }
     for p in 0..piece_count {
         let edges = (sides_of[p] + open_sides[p]) / 2;
         let chi = fans[p] - edges + faces_of[p];
         let b = cycles_of[p];
+        let region = region_of_piece[p];
+        if ambiguous.contains_key(&region) {
+            let e = region_sums.entry(region).or_default();
+            *e = [
+                e[0] + 1,
+                e[1] + chi,
+                e[2] + b,
+                e[3] + outers_of[p],
+                e[4] + i64::from(open_sides[p] > 0),
+            ];
+            continue;
+        }
         assert_eq!(
             outers_of[p],
             i64::from(b > 0),
@@ -368,6 +412,19 @@ fn check_invariants(
         if chi == 1 {
             assert_eq!(b, 1, "{what}: a disc has exactly one cycle");
         }
+    }
+    for (region, [pieces, chi, b, outers, open]) in region_sums {
+        let (extra_b, extra_outers) = ambiguous[&region];
+        let (b, outers) = (b + extra_b, outers + extra_outers);
+        assert_eq!(
+            outers, open,
+            "{what}: region {region}: one outer per open piece"
+        );
+        let twice_genus = 2 * pieces - chi - b;
+        assert!(
+            twice_genus >= 0 && twice_genus % 2 == 0,
+            "{what}: region {region}: χ = {chi} over {pieces} pieces with {b} cycles"
+        );
     }
 }
 
@@ -1033,5 +1090,67 @@ fn smoothing_keeps_points_finite_with_degenerate_ellipsoids() {
     // On the unit sphere with every valid ellipsoid the sphere itself, points stay near it.
     for p in &points {
         assert!((p.length() - 1.0).abs() < 0.2, "{p}");
+    }
+}
+
+#[test]
+fn border_points_slide_along_their_one_ellipsoid() {
+    // An open hemisphere covered by one region whose ellipsoid is its sphere: the rim (a
+    // border arc) keeps to the sphere and to its plane; the Laplacian pull inward is balanced
+    // by the projection at |p| = 1/(3 − 2·cos θ) ≈ 1 − θ², θ the edge's angle.
+    let mesh = ellip::synth::shapes::hemisphere(1.0, 4);
+    let labels = vec![0; mesh.face_count()];
+    let graph = extract_boundaries(&mesh, &labels, 1).unwrap();
+    check_invariants(&mesh, &labels, 1, &graph, "hemisphere rim");
+    assert_eq!(graph.arcs.len(), 1);
+    assert!(graph.arcs[0].closed && graph.arcs[0].right == Side::Border);
+    let sphere = [Ellipsoid::sphere(DVec3::ZERO, 1.0)];
+    let points = smooth_boundaries(&mesh, &graph, &sphere, &SmoothOptions::default()).unwrap();
+    let h = mesh.average_edge_length();
+    for p in &points {
+        assert!(p.z.abs() < 1e-12, "{p}");
+        assert!((p.length() - 1.0).abs() < 0.1 * h, "{p} (edge {h})");
+    }
+}
+
+#[test]
+fn inconsistently_oriented_faces_are_bordered_off() {
+    // A flipped face (as in a non-orientable mesh): its edges are border sides on both faces.
+    let sphere = icosphere(1.0, 3);
+    let (positions, mut faces) = sphere.into_parts();
+    faces[17].swap(0, 1);
+    let mesh = Mesh::new(positions, faces).unwrap();
+    assert!(!mesh.topology().is_consistently_oriented());
+    for k in [1, 2, 8] {
+        let (labels, regions) = random_labels(&mesh, k, 9);
+        let graph = extract_boundaries(&mesh, &labels, regions).unwrap();
+        check_invariants(&mesh, &labels, regions, &graph, &format!("flipped K={k}"));
+        let border_arcs = graph
+            .arcs
+            .iter()
+            .filter(|a| a.right == Side::Border)
+            .count();
+        assert!(border_arcs >= 1, "the flipped face is bordered off");
+    }
+}
+
+#[test]
+fn torus_sectors_have_two_cycles_bordering_one_part() {
+    // Four sectors around a torus: each is a band whose two cycles border different regions
+    // that are connected around the ring — one part, so the tie goes to the longer cycle.
+    let mesh = ellip::synth::shapes::torus(1.0, 0.4, 64, 16);
+    for offset in [0.0, 0.3, 0.7, 1.1, 1.4] {
+        let labels = label_by(&mesh, |c| {
+            // Tilted cuts, so that a band's two cycles differ in length.
+            let phi = c.y.atan2(c.x);
+            let a = (phi + offset + 1.2 * c.z * phi.sin()).rem_euclid(std::f64::consts::TAU);
+            ((a / std::f64::consts::FRAC_PI_2) as u32).min(3)
+        });
+        let what = format!("torus sectors {offset}");
+        let graph = extract_boundaries(&mesh, &labels, 4).unwrap();
+        check_invariants(&mesh, &labels, 4, &graph, &what);
+        assert!(graph.cycles.iter().all(|c| c.len() == 2), "{what}: bands");
+        assert!(graph.junctions.is_empty(), "{what}: four closed arcs");
+        assert_eq!(check_outer_rule(&mesh, &labels, &graph, &what), 4);
     }
 }
