@@ -15,6 +15,10 @@
 //! - A point on a mesh-border arc uses its two neighbours along the border and the one
 //!   ellipsoid of its region: the border is smoothed along that ellipsoid (it has no second
 //!   surface to meet). Where a region boundary meets the border the junction uses both.
+//!   Like any Laplacian smoothing this pulls a border loop inward along the ellipsoid, by at
+//!   most about ε·h²/(3ρ) per pass (h the edge length, ρ the loop's radius), unless the
+//!   ellipsoid holds it (a rim on a great circle stays put: tested); the default 40 passes
+//!   move a loop of radius 10·h by at most about two thirds of an edge.
 //!
 //! Regions whose ellipsoid is invalid (non-finite or non-positive radii) contribute no
 //! projection; a point with nothing associated, or whose update is not finite, stays put.
