@@ -1154,3 +1154,80 @@ fn torus_sectors_have_two_cycles_bordering_one_part() {
         assert_eq!(check_outer_rule(&mesh, &labels, &graph, &what), 4);
     }
 }
+
+#[test]
+fn smoothing_pulls_blob_boundaries_onto_their_ellipsoids_intersections() {
+    // The committed blobs of 3–6 known ellipsoids (smooth unions: the true intersection curve
+    // lies inside a fillet), labelled by the nearest ellipsoid.
+    #[derive(serde::Deserialize)]
+    struct Truth {
+        ellipsoids: Vec<EllipsoidSpec>,
+    }
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/meshes");
+    for n in 1..=4 {
+        let truth: Truth =
+            serde_json::from_slice(&std::fs::read(dir.join(format!("blob{n}.json"))).unwrap())
+                .unwrap();
+        let ellipsoids: Vec<Ellipsoid> =
+            truth.ellipsoids.iter().map(Ellipsoid::from_spec).collect();
+        let mesh = read_mesh(&dir.join(format!("blob{n}.obj")), &ImportOptions::default())
+            .unwrap()
+            .mesh;
+        let labels = label_by(&mesh, |p| {
+            (0..ellipsoids.len())
+                .min_by(|&i, &j| {
+                    ellipsoids[i]
+                        .radial_distance(p)
+                        .total_cmp(&ellipsoids[j].radial_distance(p))
+                })
+                .unwrap() as u32
+        });
+        let regions = ellipsoids.len();
+        let graph = extract_boundaries(&mesh, &labels, regions).unwrap();
+        check_invariants(&mesh, &labels, regions, &graph, &format!("blob{n}"));
+        let points =
+            smooth_boundaries(&mesh, &graph, &ellipsoids, &SmoothOptions::default()).unwrap();
+        // Distance of each point between two regions (not a junction) to the farther of its
+        // two ellipsoids, before and after.
+        let junctions: HashSet<u32> = graph.junctions.iter().copied().collect();
+        let mut before = Vec::new();
+        let mut after = Vec::new();
+        for arc in &graph.arcs {
+            let Side::Region(r) = arc.right else { continue };
+            for &v in arc.vertices.iter().filter(|v| !junctions.contains(v)) {
+                let k = graph.vertices.binary_search(&v).unwrap();
+                let off = |p: DVec3| {
+                    ellipsoids[arc.left as usize]
+                        .radial_distance(p)
+                        .max(ellipsoids[r as usize].radial_distance(p))
+                };
+                before.push(off(mesh.positions()[v as usize]));
+                after.push(off(points[k]));
+            }
+        }
+        before.sort_by(f64::total_cmp);
+        after.sort_by(f64::total_cmp);
+        let h = mesh.average_edge_length();
+        let q = |v: &[f64], f: f64| v[((v.len() - 1) as f64 * f) as usize] / h;
+        println!(
+            "blob{n}: {} points, edge {h:.4}; off both ellipsoids (in edges): median {:.3} -> {:.3}, 90% {:.3} -> {:.3}, max {:.3} -> {:.3}",
+            before.len(),
+            q(&before, 0.5),
+            q(&after, 0.5),
+            q(&before, 0.9),
+            q(&after, 0.9),
+            q(&before, 1.0),
+            q(&after, 1.0)
+        );
+        // Measured: medians 0.55–0.92 edges before, 0.02–0.06 after; 90th percentiles
+        // 0.04–0.12 after (the worst points sit next to junctions, which lag; see
+        // `DEFAULT_ITERATIONS`).
+        assert!(q(&after, 0.5) < 0.1, "blob{n}: median");
+        assert!(q(&after, 0.9) < 0.15, "blob{n}: 90th percentile");
+        assert!(
+            q(&after, 0.5) < q(&before, 0.5) / 5.0,
+            "blob{n}: improvement"
+        );
+        assert!(points.iter().all(|p| p.is_finite()));
+    }
+}
