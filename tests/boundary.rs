@@ -132,8 +132,8 @@ fn cycle_ends(graph: &BoundaryGraph, cycle: &Cycle) -> Vec<(u32, u32)> {
         .collect()
 }
 
-/// Checks every invariant of the brief; `what` names the case in messages. Returns the
-/// number of regions with several cycles (to show the cases are exercised).
+/// Checks every invariant of a boundary graph against the mesh and labels; `what` names the
+/// case in messages.
 fn check_invariants(
     mesh: &Mesh,
     labels: &[u32],
@@ -545,10 +545,10 @@ fn invariants_hold_on_every_real_mesh() {
     for path in meshes_in(&dir) {
         let mesh = read_mesh(&path, &ImportOptions::default()).unwrap().mesh;
         let name = path.file_name().unwrap().to_string_lossy().into_owned();
-        for k in [2, 8, 32] {
-            let graph = extract_and_check(&mesh, k, 7, &format!("{name} K={k}"));
+        for (k, seed) in [(2, 7), (8, 7), (32, 7), (2, 8), (8, 8), (32, 8)] {
+            let graph = extract_and_check(&mesh, k, seed, &format!("{name} K={k} seed={seed}"));
             println!(
-                "{name} K={k}: {} faces, {} arcs, {} junctions, {} cycles",
+                "{name} K={k} seed={seed}: {} faces, {} arcs, {} junctions, {} cycles",
                 mesh.face_count(),
                 graph.arcs.len(),
                 graph.junctions.len(),
