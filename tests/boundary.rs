@@ -893,6 +893,10 @@ fn bad_labels_are_rejected() {
     assert!(extract_boundaries(&mesh, &vec![0; n - 1], 1).is_err());
     assert!(extract_boundaries(&mesh, &vec![1; n], 1).is_err());
     assert!(extract_boundaries(&mesh, &vec![0; n], 0).is_err());
+    assert!(extract_boundaries(&mesh, &vec![0; n], usize::MAX).is_err());
+    // Empty regions are fine.
+    let graph = extract_boundaries(&mesh, &vec![2; n], 3).unwrap();
+    assert!(graph.arcs.is_empty() && graph.cycles.len() == 3);
 }
 
 // ---------------------------------------------------------------------------------------

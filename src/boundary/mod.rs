@@ -177,7 +177,8 @@ pub enum BoundaryError {
 /// Most faces [`extract_boundaries`] accepts: three sides per face must fit in a `u32`.
 pub const MAX_FACES: usize = (u32::MAX as usize - 1) / 3;
 
-/// Extracts the boundary graph of a labelling of `mesh`'s faces into `region_count` regions.
+/// Extracts the boundary graph of a labelling of `mesh`'s faces into `region_count` regions
+/// (at most one per face; regions without faces are allowed and get no cycles).
 ///
 /// Runs in time and memory linear in the mesh size: a few tables over the faces' sides, one
 /// over the vertices, and one walk of every boundary side. See the [module docs](self) for
@@ -191,6 +192,14 @@ pub fn extract_boundaries(
     if labels.len() != faces.len() {
         return Err(BoundaryError::BadLabels {
             what: format!("{} labels for {} faces", labels.len(), faces.len()),
+        });
+    }
+    if region_count > faces.len().max(1) {
+        return Err(BoundaryError::BadLabels {
+            what: format!(
+                "{region_count} regions for {} faces (regions beyond one per face are empty)",
+                faces.len()
+            ),
         });
     }
     if let Some((f, &l)) = labels
