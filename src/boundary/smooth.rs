@@ -1,27 +1,207 @@
 //! Constrained relaxation of boundary vertices toward the ellipsoids they touch
-//! (Simari & Singh 2005, section 4.1). (Being written.)
+//! (Simari & Singh 2005, section 4.1).
+//!
+//! Each pass moves every boundary point `p` to `(1 − ε)·p + ε·q`, where `q` is the centroid of
+//! its *associated points*: its neighbours along the arcs through it, and its radial
+//! projections Π (paper, section 2) onto the ellipsoids of the regions on either side of those
+//! arcs. All points are updated from the previous pass's positions (Jacobi), so the result
+//! does not depend on the order of the vertices.
+//!
+//! - An ordinary point between regions A and B has two neighbours and two projections; the
+//!   fixed point lies on (within the curve's own curvature of) the curve where A's and B's
+//!   ellipsoids intersect, evenly spaced along it.
+//! - A junction uses every arc through it (all its neighbours) and the ellipsoids of every
+//!   region around it, so it is pulled toward the points the ellipsoids share.
+//! - A point on a mesh-border arc uses its two neighbours along the border and the one
+//!   ellipsoid of its region: the border is smoothed along that ellipsoid (it has no second
+//!   surface to meet). Where a region boundary meets the border the junction uses both.
+//!   Like any Laplacian smoothing this pulls a border loop inward along the ellipsoid, by at
+//!   most about ε·h²/(3ρ) per pass (h the edge length, ρ the loop's radius), unless the
+//!   ellipsoid holds it (a rim on a great circle stays put: tested); the default 40 passes
+//!   move a loop of radius 10·h by at most about two thirds of an edge.
+//!
+//! Regions whose ellipsoid is invalid (non-finite or non-positive radii) contribute no
+//! projection; a point with nothing associated, or whose update is not finite, stays put.
 
-use super::BoundaryGraph;
+use super::{BoundaryError, BoundaryGraph, Side};
 use crate::ellipsoid::Ellipsoid;
 use crate::mesh::Mesh;
 use glam::DVec3;
 
+/// Default number of passes of [`smooth_boundaries`]. Measured on two spheres meeting in a
+/// circle (edge length h ≈ 0.05 of the radius): ordinary boundary points reach their floor
+/// (≈ 0.03·h from both spheres, the bias of the curve's own curvature) after 20 passes at
+/// ε = 0.5; triple junctions, pulled aside by arcs that all leave on one side, keep
+/// approaching their common point more slowly (1.6·h → 1.05·h after 20 passes, 0.94·h after
+/// 40, 0.8·h after 200), so the default is 40.
+pub const DEFAULT_ITERATIONS: usize = 40;
+/// Default step ε of [`smooth_boundaries`]: 0.5 (ε = 0.3 to 1.0 all converge in 20–40
+/// passes on the measurement above; 0.5 is the paper's "small ε" side of that range).
+pub const DEFAULT_EPSILON: f64 = 0.5;
+
 /// Iterations and step of the relaxation.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SmoothOptions {
-    /// Number of relaxation passes.
+    /// Number of relaxation passes (default [`DEFAULT_ITERATIONS`]).
     pub iterations: usize,
-    /// Step ε of p ← (1−ε)p + εq.
+    /// Step ε of p ← (1−ε)p + εq, in `[0, 1]` (default [`DEFAULT_EPSILON`]); 0 moves nothing.
     pub epsilon: f64,
 }
 
+impl Default for SmoothOptions {
+    fn default() -> Self {
+        SmoothOptions {
+            iterations: DEFAULT_ITERATIONS,
+            epsilon: DEFAULT_EPSILON,
+        }
+    }
+}
+
 /// Relaxes every boundary vertex; returns the new position of each vertex of
-/// `graph.vertices`, in the same order.
+/// `graph.vertices`, in the same order. `ellipsoids[r]` is region `r`'s; there must be one
+/// per region of `graph`.
 pub fn smooth_boundaries(
-    _mesh: &Mesh,
-    _graph: &BoundaryGraph,
-    _ellipsoids: &[Ellipsoid],
-    _options: &SmoothOptions,
-) -> Vec<DVec3> {
-    todo!("being written")
+    mesh: &Mesh,
+    graph: &BoundaryGraph,
+    ellipsoids: &[Ellipsoid],
+    options: &SmoothOptions,
+) -> Result<Vec<DVec3>, BoundaryError> {
+    let epsilon = options.epsilon;
+    if !(0.0..=1.0).contains(&epsilon) {
+        return Err(BoundaryError::BadOptions {
+            what: format!("epsilon is {epsilon}, expected a value in [0, 1]"),
+        });
+    }
+    if ellipsoids.len() < graph.cycles.len() {
+        return Err(BoundaryError::BadOptions {
+            what: format!(
+                "{} ellipsoids for {} regions",
+                ellipsoids.len(),
+                graph.cycles.len()
+            ),
+        });
+    }
+    let positions = mesh.positions();
+    let mut points = Vec::with_capacity(graph.vertices.len());
+    for &v in &graph.vertices {
+        let p = positions
+            .get(v as usize)
+            .ok_or_else(|| BoundaryError::BadOptions {
+                what: format!("boundary vertex {v} is not in the mesh"),
+            })?;
+        points.push(*p);
+    }
+    let links = Links::build(graph, ellipsoids)?;
+    let mut next = points.clone();
+    for _ in 0..options.iterations {
+        for (k, out) in next.iter_mut().enumerate() {
+            let p = points[k];
+            let mut sum = DVec3::ZERO;
+            let mut count = 0usize;
+            for &n in links.neighbours(k) {
+                sum += points[n as usize];
+                count += 1;
+            }
+            for &r in links.regions(k) {
+                let q = ellipsoids[r as usize].project_radially(p);
+                if q.is_finite() {
+                    sum += q;
+                    count += 1;
+                }
+            }
+            let moved = if count == 0 {
+                p
+            } else {
+                (1.0 - epsilon) * p + epsilon * (sum / count as f64)
+            };
+            *out = if moved.is_finite() { moved } else { p };
+        }
+        std::mem::swap(&mut points, &mut next);
+    }
+    Ok(points)
+}
+
+/// For each boundary point (index into `graph.vertices`): its neighbours along arcs (same
+/// indices) and the regions with a valid ellipsoid on either side of its arcs, as compressed
+/// rows without repeats.
+struct Links {
+    neighbour_offsets: Vec<u32>,
+    neighbours: Vec<u32>,
+    region_offsets: Vec<u32>,
+    regions: Vec<u32>,
+}
+
+impl Links {
+    fn build(graph: &BoundaryGraph, ellipsoids: &[Ellipsoid]) -> Result<Links, BoundaryError> {
+        let index = |v: u32| {
+            graph
+                .vertices
+                .binary_search(&v)
+                .map(|k| k as u32)
+                .map_err(|_| BoundaryError::BadOptions {
+                    what: format!("arc vertex {v} is not a boundary vertex"),
+                })
+        };
+        let n = graph.vertices.len();
+        let mut pairs: Vec<(u32, u32)> = Vec::new();
+        let mut touches: Vec<(u32, u32)> = Vec::new();
+        for arc in &graph.arcs {
+            let valid = |r: u32| ellipsoids.get(r as usize).is_some_and(Ellipsoid::is_valid);
+            let mut sides = vec![arc.left];
+            if let Side::Region(r) = arc.right {
+                sides.push(r);
+            }
+            sides.retain(|&r| valid(r));
+            let vs = &arc.vertices;
+            let mut prev: Option<u32> = None;
+            for &v in vs {
+                let k = index(v)?;
+                for &r in &sides {
+                    touches.push((k, r));
+                }
+                if let Some(p) = prev {
+                    pairs.push((p, k));
+                    pairs.push((k, p));
+                }
+                prev = Some(k);
+            }
+            if arc.closed && vs.len() > 1 {
+                if let (Some(&a), Some(&b)) = (vs.first(), vs.last()) {
+                    let (a, b) = (index(a)?, index(b)?);
+                    pairs.push((a, b));
+                    pairs.push((b, a));
+                }
+            }
+        }
+        let (neighbour_offsets, neighbours) = compress(n, pairs);
+        let (region_offsets, regions) = compress(n, touches);
+        Ok(Links {
+            neighbour_offsets,
+            neighbours,
+            region_offsets,
+            regions,
+        })
+    }
+
+    fn neighbours(&self, k: usize) -> &[u32] {
+        &self.neighbours[self.neighbour_offsets[k] as usize..self.neighbour_offsets[k + 1] as usize]
+    }
+
+    fn regions(&self, k: usize) -> &[u32] {
+        &self.regions[self.region_offsets[k] as usize..self.region_offsets[k + 1] as usize]
+    }
+}
+
+/// Sorted, deduplicated (row, value) pairs as compressed rows.
+fn compress(rows: usize, mut pairs: Vec<(u32, u32)>) -> (Vec<u32>, Vec<u32>) {
+    pairs.sort_unstable();
+    pairs.dedup();
+    let mut offsets = vec![0u32; rows + 1];
+    for &(r, _) in &pairs {
+        offsets[r as usize + 1] += 1;
+    }
+    for r in 0..rows {
+        offsets[r + 1] += offsets[r];
+    }
+    (offsets, pairs.into_iter().map(|(_, v)| v).collect())
 }
