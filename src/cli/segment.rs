@@ -358,6 +358,7 @@ fn progress_bar(args: &SegmentArgs, options: &SegmentOptions) -> ProgressBar {
     .unwrap_or_else(|_| ProgressStyle::default_bar())
     .progress_chars("=> ");
     bar.set_style(style);
+    bar.set_message("preparing");
     bar.enable_steady_tick(Duration::from_millis(120));
     bar
 }
@@ -701,7 +702,7 @@ fn print_text(r: &Report) {
         _ => "ellipsoids (surface mode)".to_string(),
     };
     println!(
-        "segmented   {} {what} in {} iterations, {:.2} s (seed {}), total error {:.6e}",
+        "segmented   {} {what}, {} iteration(s) in {:.2} s (seed {}), total error {:.6e}",
         r.regions.len(),
         r.iterations,
         r.seconds,
@@ -709,11 +710,11 @@ fn print_text(r: &Report) {
         r.total_error
     );
     let distance = if r.proxy == "plane" {
-        "RMS distance to plane"
+        "RMS distance to the plane"
     } else {
         "RMS radial error"
     };
-    println!("{distance}s are in % of the bounding-box diagonal");
+    println!("RMS %       {distance} of each region's vertices, in % of the bounding-box diagonal");
     if r.proxy == "plane" {
         println!("region   faces  normal                        RMS %");
     } else {
