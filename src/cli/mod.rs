@@ -3,6 +3,7 @@
 mod convert;
 mod fixtures;
 mod info;
+mod segment;
 
 use clap::{Args, Parser, Subcommand};
 use ellip::import::{ImportOptions, Weld};
@@ -15,7 +16,8 @@ Examples:
   ellip info fixtures/meshes/blob1.obj          describe a mesh: size, topology, curvature, repairs
   ellip info bunny.ply --json                   the same as JSON, for scripts
   ellip convert scan.stl scan.glb               convert between OBJ, glTF/GLB, PLY, STL and OFF
-  ellip convert part.obj part.ply --weld 1e-6   join vertices closer than 1e-6 on the way";
+  ellip convert part.obj part.ply --weld 1e-6   join vertices closer than 1e-6 on the way
+  ellip segment bunny.obj -k 12 -o seg.glb      12 ellipsoidal regions, coloured, with statistics";
 
 /// ellip: dense triangle meshes as a few dozen ellipsoidal regions.
 #[derive(Debug, Parser)]
@@ -36,6 +38,15 @@ enum Command {
     /// .ply. The output is written atomically and never replaces the input.
     #[command(after_help = "Example:\n  ellip convert fixtures/meshes/torus.obj torus.glb")]
     Convert(convert::ConvertArgs),
+    /// Segment a mesh into ellipsoidal regions (or planes) and write it coloured per region.
+    ///
+    /// Prints, for each region, its faces, the ellipsoid's sign and radii and the RMS radial
+    /// error of its vertices (in % of the bounding-box diagonal). Writes .glb, .gltf or .ply
+    /// with per-region vertex colours (.obj without colours), atomically, never over the input.
+    #[command(
+        after_help = "Examples:\n  ellip segment fixtures/meshes/blob2.obj -k 4 -o blob2-regions.glb\n  ellip segment bunny.obj --tolerance 0.01 --mode volume --json\n  ellip segment bunny.obj -k 12 --planes -o planes.ply"
+    )]
+    Segment(segment::SegmentArgs),
     /// Regenerate the committed fixture meshes (for developers).
     #[command(hide = true)]
     Fixtures(fixtures::FixturesArgs),
@@ -72,6 +83,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
     match cli.command {
         Command::Info(args) => info::run(&args),
         Command::Convert(args) => convert::run(&args),
+        Command::Segment(args) => segment::run(&args),
         Command::Fixtures(args) => fixtures::run(&args),
     }
 }

@@ -1,0 +1,794 @@
+//! `ellip segment IN -k 12 -o seg.glb`: segment a mesh into ellipsoidal (or, with
+//! `--planes`, planar) regions, write it coloured per region, and report how well each
+//! region's proxy fits.
+//!
+//! The output duplicates every vertex once per region it touches, so that each face takes
+//! its region's colour (glTF `COLOR_0`, PLY `red green blue alpha`); faces keep their order.
+//! OBJ holds no colours: the mesh is written as it is and stderr says so.
+
+use super::{refuse_overwriting, shown, CliError, ReadArgs};
+use clap::{Args, ValueEnum};
+use ellip::ellipsoid::{Ellipsoid, Sign};
+use ellip::export::{write_mesh, MeshData};
+use ellip::import::{read_mesh, MeshFormat};
+use ellip::segment::{
+    segment_with, EllipsoidMetric, Mode, Plane, PlaneMetric, Progress, RegionCount, SegmentOptions,
+    Segmentation, WeightOverrides,
+};
+use ellip::Mesh;
+use glam::DVec3;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use serde::Serialize;
+use std::collections::HashMap;
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// Most worker threads `--threads` accepts.
+const MAX_THREADS: usize = 1024;
+
+#[derive(Debug, Args)]
+pub struct SegmentArgs {
+    /// The mesh to read (.obj, .gltf, .glb, .ply, .stl, .off).
+    input: PathBuf,
+    /// Write the mesh coloured per region here (.glb, .gltf, .ply; .obj without colours).
+    /// Without it, only the statistics are printed.
+    #[arg(long, short, value_name = "FILE")]
+    output: Option<PathBuf>,
+    /// Number of regions [default: 12].
+    #[arg(
+        long = "regions",
+        short = 'k',
+        value_name = "N",
+        allow_negative_numbers = true
+    )]
+    regions: Option<i64>,
+    /// Instead of -k: as few regions as reach this RMS error, as a fraction of the
+    /// bounding-box diagonal (e.g. 0.01).
+    #[arg(long, value_name = "T", allow_negative_numbers = true)]
+    tolerance: Option<f64>,
+    /// Most Lloyd iterations after seeding.
+    #[arg(long, value_name = "N", default_value_t = 50)]
+    iterations: usize,
+    /// What the ellipsoids approximate: the surface, or the volume (paper, section 3).
+    #[arg(long, value_enum, default_value_t = ModeArg::Surface)]
+    mode: ModeArg,
+    /// Use only positive ellipsoids (no inner surfaces for concavities).
+    #[arg(long)]
+    no_negative: bool,
+    /// Seed of the random choices: the same seed gives the same regions.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Worker threads [default: all cores]. The result does not depend on it.
+    #[arg(long, value_name = "N", allow_negative_numbers = true)]
+    threads: Option<i64>,
+    /// Weight of the Euclidean (radial) distance, α [default: the paper's].
+    #[arg(long, value_name = "W", allow_negative_numbers = true)]
+    alpha: Option<f64>,
+    /// Weight of the normal distance, β [default: the paper's].
+    #[arg(long, value_name = "W", allow_negative_numbers = true)]
+    beta: Option<f64>,
+    /// Weight of the curvature distance, γ [default: the paper's].
+    #[arg(long, value_name = "W", allow_negative_numbers = true)]
+    gamma: Option<f64>,
+    /// Weight of the volume term in volume mode, δ [default: the paper's].
+    #[arg(long, value_name = "W", allow_negative_numbers = true)]
+    delta: Option<f64>,
+    /// Segment into planes with VSA's L²,¹ metric instead, for comparison; the statistics
+    /// then give each vertex's distance to its region's plane.
+    #[arg(long)]
+    planes: bool,
+    /// Print the statistics as JSON (and nothing else on stdout).
+    #[arg(long)]
+    json: bool,
+    /// Print nothing on stderr but errors (no progress bar, no notes).
+    #[arg(long, short)]
+    quiet: bool,
+    #[command(flatten)]
+    read: ReadArgs,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum ModeArg {
+    Surface,
+    Volume,
+}
+
+/// Everything `ellip segment` reports.
+#[derive(Debug, Serialize)]
+struct Report {
+    file: String,
+    /// The file written, `null` without `-o`.
+    output: Option<String>,
+    /// Whether the output holds per-region colours (not for OBJ).
+    colored: bool,
+    /// "ellipsoid" or "plane".
+    proxy: &'static str,
+    /// "surface" or "volume" (ellipsoids only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    mode: Option<Mode>,
+    vertices: usize,
+    faces: usize,
+    bbox_diagonal: f64,
+    seed: u64,
+    iterations: usize,
+    seconds: f64,
+    /// Sum of the region errors in the segmentation's own metric.
+    total_error: f64,
+    /// RMS over every region's vertices of the distance to the region's proxy (radial
+    /// distance for ellipsoids, distance to the plane for planes), in % of the diagonal.
+    /// A vertex shared by several regions counts once in each.
+    rms_error_percent: f64,
+    regions: Vec<RegionReport>,
+}
+
+/// One region's statistics.
+#[derive(Debug, Serialize)]
+struct RegionReport {
+    region: usize,
+    faces: usize,
+    vertices: usize,
+    /// The region's error in the segmentation's metric.
+    error: f64,
+    /// RMS distance of the region's vertices to its proxy, in % of the diagonal.
+    rms_error_percent: f64,
+    /// The sRGB colour the region has in the output.
+    color: [u8; 3],
+    #[serde(flatten)]
+    proxy: ProxyReport,
+}
+
+/// A region's proxy.
+#[derive(Debug, Serialize)]
+#[serde(untagged)]
+enum ProxyReport {
+    Ellipsoid {
+        sign: &'static str,
+        center: [f64; 3],
+        radii: [f64; 3],
+        /// Unit quaternion x, y, z, w.
+        rotation: [f64; 4],
+    },
+    Plane {
+        point: [f64; 3],
+        normal: [f64; 3],
+    },
+}
+
+pub fn run(args: &SegmentArgs) -> Result<(), CliError> {
+    let options = segment_options(args)?;
+    let output_format = match &args.output {
+        Some(output) => {
+            refuse_overwriting(&args.input, output)?;
+            Some(output_format(output)?)
+        }
+        None => None,
+    };
+    let imported = read_mesh(&args.input, &args.read.import_options()?)?;
+    if !args.quiet {
+        for w in &imported.warnings {
+            eprintln!("warning: {w}");
+        }
+    }
+    let mesh = &imported.mesh;
+    let diagonal = mesh.bounding_box().map_or(0.0, |b| b.diagonal());
+
+    let bar = progress_bar(args, &options);
+    let mut on_progress = |p: Progress| show_progress(&bar, &p);
+    let start = Instant::now();
+    let (labels, proxies, summary) = if args.planes {
+        let metric = PlaneMetric::new(mesh);
+        let s = segment_with(mesh, &metric, &options, &mut on_progress)?;
+        bar.finish_and_clear();
+        let proxies: Vec<ProxyReport> = s.proxies.iter().map(plane_report).collect();
+        let rms = region_rms(mesh, &s, |plane: &Plane, p| plane.distance(p));
+        (s.labels.clone(), proxies, summarise(&s, rms))
+    } else {
+        let metric = EllipsoidMetric::new(mesh, &options)?;
+        let s = segment_with(mesh, &metric, &options, &mut on_progress)?;
+        bar.finish_and_clear();
+        let proxies: Vec<ProxyReport> = s.proxies.iter().map(ellipsoid_report).collect();
+        let rms = region_rms(mesh, &s, |e: &Ellipsoid, p| e.radial_distance(p));
+        (s.labels.clone(), proxies, summarise(&s, rms))
+    };
+    let seconds = start.elapsed().as_secs_f64();
+
+    let palette = palette(proxies.len());
+    let colored = matches!(
+        output_format,
+        Some(MeshFormat::Glb | MeshFormat::Gltf | MeshFormat::Ply)
+    );
+    if let (Some(output), Some(format)) = (&args.output, output_format) {
+        write_output(mesh, &labels, &palette, output, format)?;
+        if !args.quiet && !colored {
+            eprintln!(
+                "note: {} holds no vertex colours, so the regions are not coloured; write .glb, .gltf or .ply to see them",
+                shown(output)
+            );
+        }
+    }
+
+    let percent = |d: f64| {
+        if diagonal > 0.0 {
+            100.0 * d / diagonal
+        } else {
+            0.0
+        }
+    };
+    let regions = proxies
+        .into_iter()
+        .zip(&summary.regions)
+        .enumerate()
+        .map(|(region, (proxy, r))| RegionReport {
+            region,
+            faces: r.faces,
+            vertices: r.vertices,
+            error: r.error,
+            rms_error_percent: percent(r.rms),
+            color: palette.get(region).map_or([0; 3], |c| c.srgb),
+            proxy,
+        })
+        .collect();
+    let report = Report {
+        file: shown(&args.input),
+        output: args.output.as_deref().map(shown),
+        colored,
+        proxy: if args.planes { "plane" } else { "ellipsoid" },
+        mode: (!args.planes).then_some(options.mode),
+        vertices: mesh.vertex_count(),
+        faces: mesh.face_count(),
+        bbox_diagonal: diagonal,
+        seed: options.seed,
+        iterations: summary.iterations,
+        seconds,
+        total_error: summary.total_error,
+        rms_error_percent: percent(summary.rms),
+        regions,
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print_text(&report);
+    }
+    if !args.quiet {
+        if let Some(output) = &report.output {
+            eprintln!(
+                "wrote {output} ({} regions, {} faces)",
+                report.regions.len(),
+                report.faces
+            );
+        }
+    }
+    Ok(())
+}
+
+/// The library's options from the command line, each value checked (one-line errors, before
+/// the mesh is read).
+fn segment_options(args: &SegmentArgs) -> Result<SegmentOptions, CliError> {
+    let regions = match (args.regions, args.tolerance) {
+        (Some(_), Some(_)) => {
+            return Err("give either -k/--regions or --tolerance, not both".into())
+        }
+        (Some(k), None) => match usize::try_from(k) {
+            Ok(k) if k >= 1 => RegionCount::Fixed(k),
+            _ => return Err(format!("-k/--regions must be at least 1, not {k}").into()),
+        },
+        (None, Some(t)) if t.is_finite() && t > 0.0 => RegionCount::Tolerance(t),
+        (None, Some(t)) => {
+            return Err(format!(
+                "--tolerance must be a positive fraction of the bounding-box diagonal, not {t}"
+            )
+            .into())
+        }
+        (None, None) => SegmentOptions::default().regions,
+    };
+    let threads = match args.threads {
+        None => None,
+        Some(n) => match usize::try_from(n) {
+            Ok(n) if (1..=MAX_THREADS).contains(&n) => Some(n),
+            _ => {
+                return Err(
+                    format!("--threads must be between 1 and {MAX_THREADS}, not {n}").into(),
+                )
+            }
+        },
+    };
+    let weight = |name: &str, w: Option<f64>| -> Result<Option<f64>, CliError> {
+        match w {
+            Some(w) if !(w.is_finite() && w >= 0.0) => {
+                Err(format!("--{name} must be a finite weight >= 0, not {w}").into())
+            }
+            Some(_) if args.planes => Err(format!(
+                "--{name} weighs the ellipsoid metric; it does not apply to --planes"
+            )
+            .into()),
+            w => Ok(w),
+        }
+    };
+    let weights = WeightOverrides {
+        alpha: weight("alpha", args.alpha)?,
+        beta: weight("beta", args.beta)?,
+        gamma: weight("gamma", args.gamma)?,
+        delta: weight("delta", args.delta)?,
+    };
+    if args.planes && (args.mode != ModeArg::Surface || args.no_negative) {
+        return Err(
+            "--mode and --no-negative choose ellipsoids; they do not apply to --planes".into(),
+        );
+    }
+    Ok(SegmentOptions {
+        regions,
+        max_iterations: args.iterations,
+        weights,
+        mode: match args.mode {
+            ModeArg::Surface => Mode::Surface,
+            ModeArg::Volume => Mode::Volume,
+        },
+        allow_negative: !args.no_negative,
+        seed: args.seed,
+        threads,
+        ..SegmentOptions::default()
+    })
+}
+
+/// The output's format, refusing the ones ellip reads but does not write.
+fn output_format(output: &Path) -> Result<MeshFormat, CliError> {
+    match MeshFormat::from_path(output) {
+        Some(f @ (MeshFormat::Obj | MeshFormat::Ply | MeshFormat::Glb | MeshFormat::Gltf)) => Ok(f),
+        _ => Err(format!(
+            "{}: cannot write this format; segment writes .glb, .gltf, .ply (coloured) or .obj",
+            shown(output)
+        )
+        .into()),
+    }
+}
+
+/// A progress bar on stderr, hidden when stderr is not a terminal or with `--quiet`.
+fn progress_bar(args: &SegmentArgs, options: &SegmentOptions) -> ProgressBar {
+    if args.quiet || !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::with_draw_target(
+        Some(options.max_iterations as u64),
+        ProgressDrawTarget::stderr(),
+    );
+    let style = ProgressStyle::with_template(
+        "{spinner} segmenting [{bar:30}] {pos}/{len} iterations, {msg} ({elapsed})",
+    )
+    .unwrap_or_else(|_| ProgressStyle::default_bar())
+    .progress_chars("=> ");
+    bar.set_style(style);
+    bar.set_message("preparing");
+    bar.enable_steady_tick(Duration::from_millis(120));
+    bar
+}
+
+fn show_progress(bar: &ProgressBar, p: &Progress) {
+    bar.set_position(p.iteration as u64);
+    if p.iteration == 0 {
+        bar.set_message(format!("seeding: {} regions", p.regions));
+    } else {
+        bar.set_message(format!(
+            "{} regions, error {:.4e} (best {:.4e})",
+            p.regions, p.error, p.best_error
+        ));
+    }
+}
+
+/// Per-region numbers for the report.
+struct RegionSummary {
+    faces: usize,
+    vertices: usize,
+    error: f64,
+    /// RMS distance of the region's vertices to its proxy (model units).
+    rms: f64,
+}
+
+struct Summary {
+    regions: Vec<RegionSummary>,
+    iterations: usize,
+    total_error: f64,
+    /// RMS over all (region, vertex) pairs.
+    rms: f64,
+}
+
+/// The distances of each region's vertices to its proxy: for each region, its vertex count
+/// and the sum of squared distances. A vertex shared by several regions is measured against
+/// each of their proxies.
+fn region_rms<P>(
+    mesh: &Mesh,
+    s: &Segmentation<P>,
+    distance: impl Fn(&P, DVec3) -> f64,
+) -> Vec<(usize, f64)> {
+    let mut out = Vec::with_capacity(s.proxies.len());
+    let mut seen = vec![u32::MAX; mesh.vertex_count()];
+    for (region, faces) in s.faces_by_region().iter().enumerate() {
+        let Some(proxy) = s.proxies.get(region) else {
+            continue;
+        };
+        let mut count = 0;
+        let mut sum = 0.0;
+        for &f in faces {
+            let Some(face) = mesh.faces().get(f as usize) else {
+                continue;
+            };
+            for &v in face {
+                let (Some(mark), Some(&p)) =
+                    (seen.get_mut(v as usize), mesh.positions().get(v as usize))
+                else {
+                    continue;
+                };
+                if *mark != region as u32 {
+                    *mark = region as u32;
+                    count += 1;
+                    let d = distance(proxy, p);
+                    sum += d * d;
+                }
+            }
+        }
+        out.push((count, sum));
+    }
+    out
+}
+
+fn summarise<P>(s: &Segmentation<P>, rms: Vec<(usize, f64)>) -> Summary {
+    let by_region = s.faces_by_region();
+    let regions = (0..s.proxies.len())
+        .map(|r| {
+            let (vertices, sum) = rms.get(r).copied().unwrap_or((0, 0.0));
+            RegionSummary {
+                faces: by_region.get(r).map_or(0, Vec::len),
+                vertices,
+                error: s.region_errors.get(r).copied().unwrap_or(0.0),
+                rms: if vertices > 0 {
+                    (sum / vertices as f64).sqrt()
+                } else {
+                    0.0
+                },
+            }
+        })
+        .collect();
+    let (count, sum) = rms
+        .iter()
+        .fold((0usize, 0.0), |(n, s), &(c, x)| (n + c, s + x));
+    Summary {
+        regions,
+        iterations: s.iterations,
+        total_error: s.total_error,
+        rms: if count > 0 {
+            (sum / count as f64).sqrt()
+        } else {
+            0.0
+        },
+    }
+}
+
+fn ellipsoid_report(e: &Ellipsoid) -> ProxyReport {
+    ProxyReport::Ellipsoid {
+        sign: match e.sign {
+            Sign::Positive => "positive",
+            Sign::Negative => "negative",
+        },
+        center: e.center.to_array(),
+        radii: e.radii.to_array(),
+        rotation: e.rotation.to_array(),
+    }
+}
+
+fn plane_report(p: &Plane) -> ProxyReport {
+    ProxyReport::Plane {
+        point: p.point.to_array(),
+        normal: p.normal.to_array(),
+    }
+}
+
+/// Writes the mesh with each face in its region's colour: every vertex is duplicated once
+/// per region that uses it. OBJ, which has no colours, gets the mesh as it is.
+fn write_output(
+    mesh: &Mesh,
+    labels: &[u32],
+    palette: &[Color],
+    output: &Path,
+    format: MeshFormat,
+) -> Result<(), CliError> {
+    let normals = mesh.vertex_normals();
+    let linear = matches!(format, MeshFormat::Glb | MeshFormat::Gltf);
+    if format == MeshFormat::Obj {
+        write_mesh(output, &MeshData::from_mesh(mesh).with_normals(&normals))?;
+        return Ok(());
+    }
+    let mut index: HashMap<(u32, u32), u32> = HashMap::with_capacity(mesh.vertex_count() * 5 / 4);
+    let mut positions = Vec::with_capacity(mesh.vertex_count());
+    let mut vertex_normals = Vec::with_capacity(mesh.vertex_count());
+    let mut colors = Vec::with_capacity(mesh.vertex_count());
+    let mut triangles = Vec::with_capacity(mesh.face_count());
+    for (f, face) in mesh.faces().iter().enumerate() {
+        let region = labels.get(f).copied().unwrap_or(0);
+        let color = palette
+            .get(region as usize)
+            .map_or([128, 128, 128, 255], |c| {
+                if linear {
+                    c.linear_rgba()
+                } else {
+                    c.srgb_rgba()
+                }
+            });
+        let mut triangle = [0u32; 3];
+        for (corner, &v) in triangle.iter_mut().zip(face) {
+            *corner = *index.entry((region, v)).or_insert_with(|| {
+                positions.push(
+                    mesh.positions()
+                        .get(v as usize)
+                        .copied()
+                        .unwrap_or_default(),
+                );
+                vertex_normals.push(normals.get(v as usize).copied().unwrap_or(DVec3::Z));
+                colors.push(color);
+                // Below the face count times 3, which a Mesh keeps within u32.
+                u32::try_from(positions.len() - 1).unwrap_or(u32::MAX)
+            });
+        }
+        triangles.push(triangle);
+    }
+    let data = MeshData {
+        positions: &positions,
+        triangles: &triangles,
+        normals: Some(&vertex_normals),
+        colors: Some(&colors),
+    };
+    write_mesh(output, &data)?;
+    Ok(())
+}
+
+/// A palette colour: its sRGB bytes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Color {
+    srgb: [u8; 3],
+    /// The colour in OKLab, for distances.
+    lab: [f64; 3],
+}
+
+impl Color {
+    fn srgb_rgba(&self) -> [u8; 4] {
+        let [r, g, b] = self.srgb;
+        [r, g, b, 255]
+    }
+
+    /// glTF's `COLOR_0` is linear (glTF 2.0, section 3.7.2.1): the sRGB colour decoded.
+    fn linear_rgba(&self) -> [u8; 4] {
+        let [r, g, b] = self.srgb.map(|c| {
+            let x = f64::from(c) / 255.0;
+            let linear = if x <= 0.04045 {
+                x / 12.92
+            } else {
+                ((x + 0.055) / 1.055).powf(2.4)
+            };
+            to_byte(linear)
+        });
+        [r, g, b, 255]
+    }
+}
+
+/// `count` well-separated colours, the same first ones whatever the count.
+///
+/// Farthest-point sampling in OKLab (Ottosson 2020, a perceptually uniform space): from a
+/// fixed set of in-gamut candidates of moderate lightness (light enough to shade, dark
+/// enough to see on white), start with a coral and repeatedly take the candidate farthest
+/// from every colour taken so far (first on ties). Past the candidates, colours repeat.
+fn palette(count: usize) -> Vec<Color> {
+    let (candidates, start) = palette_candidates();
+    let mut chosen: Vec<usize> = Vec::new();
+    // Distance from each candidate to the nearest chosen colour.
+    let mut nearest = vec![f64::INFINITY; candidates.len()];
+    let mut next = Some(start);
+    while chosen.len() < count.min(candidates.len()) {
+        let Some(pick) = next else { break };
+        chosen.push(pick);
+        let Some(picked) = candidates.get(pick) else {
+            break;
+        };
+        for (d, c) in nearest.iter_mut().zip(&candidates) {
+            *d = d.min(lab_distance(&c.lab, &picked.lab));
+        }
+        next = nearest
+            .iter()
+            .enumerate()
+            .fold(None, |best: Option<(usize, f64)>, (i, &d)| match best {
+                Some((_, bd)) if bd >= d => best,
+                _ => Some((i, d)),
+            })
+            .map(|(i, _)| i);
+    }
+    (0..count)
+        .filter_map(|i| {
+            let k = chosen.get(i % chosen.len().max(1))?;
+            candidates.get(*k).copied()
+        })
+        .collect()
+}
+
+/// In-gamut sRGB colours on an OKLCH lattice: lightness 0.5–0.9, chroma 0.05–0.17, hue every
+/// 10°; and the index of the coral the palette starts from (L 0.7, C 0.13, h 30°).
+fn palette_candidates() -> (Vec<Color>, usize) {
+    let mut out = Vec::new();
+    let mut start = 0;
+    for li in 0..5 {
+        let l = 0.5 + 0.1 * f64::from(li);
+        for ci in 0..4 {
+            let c = 0.05 + 0.04 * f64::from(ci);
+            for hi in 0..36 {
+                let h = (10.0 * f64::from(hi)).to_radians();
+                let linear = oklab_to_linear_srgb([l, c * h.cos(), c * h.sin()]);
+                if linear.iter().all(|x| (0.0..=1.0).contains(x)) {
+                    if (li, ci, hi) == (2, 2, 3) {
+                        start = out.len();
+                    }
+                    out.push(from_srgb(linear.map(|x| to_byte(encode_srgb(x)))));
+                }
+            }
+        }
+    }
+    (out, start)
+}
+
+fn from_srgb(srgb: [u8; 3]) -> Color {
+    let linear = srgb.map(|c| {
+        let x = f64::from(c) / 255.0;
+        if x <= 0.04045 {
+            x / 12.92
+        } else {
+            ((x + 0.055) / 1.055).powf(2.4)
+        }
+    });
+    Color {
+        srgb,
+        lab: linear_srgb_to_oklab(linear),
+    }
+}
+
+fn encode_srgb(x: f64) -> f64 {
+    if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// A value in [0, 1] as a byte, rounded.
+fn to_byte(x: f64) -> u8 {
+    let scaled = (x.clamp(0.0, 1.0) * 255.0).round();
+    // In 0..=255 after the clamp.
+    scaled as u8
+}
+
+fn lab_distance(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+/// OKLab → linear sRGB (Ottosson 2020).
+fn oklab_to_linear_srgb([l, a, b]: [f64; 3]) -> [f64; 3] {
+    let l_ = l + 0.396_337_777_4 * a + 0.215_803_757_3 * b;
+    let m_ = l - 0.105_561_345_8 * a - 0.063_854_172_8 * b;
+    let s_ = l - 0.089_484_177_5 * a - 1.291_485_548_0 * b;
+    let (l3, m3, s3) = (l_.powi(3), m_.powi(3), s_.powi(3));
+    [
+        4.076_741_662_1 * l3 - 3.307_711_591_3 * m3 + 0.230_969_929_2 * s3,
+        -1.268_438_004_6 * l3 + 2.609_757_401_1 * m3 - 0.341_319_396_5 * s3,
+        -0.004_196_086_3 * l3 - 0.703_418_614_7 * m3 + 1.707_614_701_0 * s3,
+    ]
+}
+
+/// Linear sRGB → OKLab (Ottosson 2020).
+fn linear_srgb_to_oklab([r, g, b]: [f64; 3]) -> [f64; 3] {
+    let l = 0.412_221_470_8 * r + 0.536_332_536_3 * g + 0.051_445_992_9 * b;
+    let m = 0.211_903_498_2 * r + 0.680_699_545_1 * g + 0.107_396_956_6 * b;
+    let s = 0.088_302_461_9 * r + 0.281_718_837_6 * g + 0.629_978_700_5 * b;
+    let (l_, m_, s_) = (l.cbrt(), m.cbrt(), s.cbrt());
+    [
+        0.210_454_255_3 * l_ + 0.793_617_785_0 * m_ - 0.004_072_046_8 * s_,
+        1.977_998_495_1 * l_ - 2.428_592_205_0 * m_ + 0.450_593_709_9 * s_,
+        0.025_904_037_1 * l_ + 0.782_771_766_2 * m_ - 0.808_675_766_0 * s_,
+    ]
+}
+
+fn print_text(r: &Report) {
+    println!(
+        "mesh        {}: {} vertices, {} faces, diagonal {:.6}",
+        r.file, r.vertices, r.faces, r.bbox_diagonal
+    );
+    let what = match (r.proxy, r.mode) {
+        ("plane", _) => "planes (L2,1 metric)".to_string(),
+        (_, Some(Mode::Volume)) => "ellipsoids (volume mode)".to_string(),
+        _ => "ellipsoids (surface mode)".to_string(),
+    };
+    println!(
+        "segmented   {} {what}, {} iteration(s) in {:.2} s (seed {}), total error {:.6e}",
+        r.regions.len(),
+        r.iterations,
+        r.seconds,
+        r.seed,
+        r.total_error
+    );
+    let distance = if r.proxy == "plane" {
+        "RMS distance to the plane"
+    } else {
+        "RMS radial error"
+    };
+    println!("RMS %       {distance} of each region's vertices, in % of the bounding-box diagonal");
+    if r.proxy == "plane" {
+        println!("region   faces  normal                        RMS %");
+    } else {
+        println!("region   faces  sign  radii                                  RMS %");
+    }
+    for g in &r.regions {
+        match &g.proxy {
+            ProxyReport::Ellipsoid { sign, radii, .. } => println!(
+                "{:>6} {:>7}  {:<4}  {:>12.6} {:>12.6} {:>12.6}  {:>7.3}",
+                g.region,
+                g.faces,
+                if *sign == "negative" { "-" } else { "+" },
+                radii[0],
+                radii[1],
+                radii[2],
+                g.rms_error_percent
+            ),
+            ProxyReport::Plane { normal, .. } => println!(
+                "{:>6} {:>7}  {:>9.5} {:>9.5} {:>9.5}  {:>7.3}",
+                g.region, g.faces, normal[0], normal[1], normal[2], g.rms_error_percent
+            ),
+        }
+    }
+    println!(
+        "total  {:>7}  {distance} {:.3} %",
+        r.faces, r.rms_error_percent
+    );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_palette_is_deterministic_well_separated_and_prefix_stable() {
+        let p64 = palette(64);
+        assert_eq!(p64.len(), 64);
+        assert_eq!(p64, palette(64));
+        let (candidates, start) = palette_candidates();
+        assert_eq!(p64.first(), candidates.get(start));
+        let first = p64[0].srgb;
+        assert!(first[0] > first[1] && first[1] > 80, "a coral: {first:?}");
+        assert_eq!(palette(12)[..], p64[..12]);
+        let min_distance = |colors: &[Color]| {
+            let mut min = f64::INFINITY;
+            for (i, a) in colors.iter().enumerate() {
+                for b in &colors[i + 1..] {
+                    min = min.min(lab_distance(&a.lab, &b.lab));
+                }
+            }
+            min
+        };
+        // OKLab's just-noticeable difference is about 0.02.
+        let (d12, d64) = (min_distance(&p64[..12]), min_distance(&p64));
+        println!("min OKLab distance: 12 colours {d12:.3}, 64 colours {d64:.3}");
+        assert!(d12 > 0.12, "{d12}");
+        assert!(d64 > 0.05, "{d64}");
+        // Past the candidates, colours repeat rather than fail.
+        assert_eq!(palette(2000).len(), 2000);
+    }
+
+    #[test]
+    fn oklab_round_trips_and_gltf_colours_are_linear() {
+        for rgb in [[0.2, 0.5, 0.9], [1.0, 1.0, 1.0], [0.0, 0.3, 0.0]] {
+            let back = oklab_to_linear_srgb(linear_srgb_to_oklab(rgb));
+            for (x, y) in rgb.iter().zip(back) {
+                assert!((x - y).abs() < 1e-6, "{rgb:?} -> {back:?}");
+            }
+        }
+        // White has L = 1 in OKLab.
+        assert!((linear_srgb_to_oklab([1.0, 1.0, 1.0])[0] - 1.0).abs() < 1e-6);
+        // sRGB 188 is linear 0.5.
+        let c = from_srgb([188, 188, 188]);
+        assert_eq!(c.linear_rgba(), [128, 128, 128, 255]);
+        assert_eq!(c.srgb_rgba(), [188, 188, 188, 255]);
+    }
+}
