@@ -3,10 +3,10 @@
 //!
 //! Simari & Singh 2005, section 4, extending the Lloyd iteration of Variational Shape
 //! Approximation (Cohen-Steiner, Alliez & Desbrun, SIGGRAPH 2004): fit every region's proxy,
-//! then regrow all regions by priority-queue flooding from each region's best-fitting face so
-//! that regions stay connected and every face is assigned; regions are added one at a time at
-//! the worst-fitting face (seeding), and teleported when the error stops improving. The best
-//! segmentation seen is kept.
+//! then regrow all regions by priority-queue flooding (from each region's well-fitting core
+//! rather than VSA's single best face, see `lloyd.rs`) so that regions stay connected and
+//! every face is assigned; regions are added one at a time where the fit is worst (seeding),
+//! and teleported when the error stops improving. The best segmentation seen is kept.
 //!
 //! The loop ([`segment_with`]) is independent of the primitive: a [`ProxyMetric`] fits a proxy
 //! to a set of faces and measures one face against a proxy. [`EllipsoidMetric`] is the
@@ -46,7 +46,8 @@ pub enum Mode {
 
 /// Replacements for the paper's default weights; `None` keeps the default (see
 /// [`crate::ellipsoid::metric::Weights::paper`]: α = 1/ā², β = 1.2, γ = 5·10⁻⁴ in canonical
-/// units, δ = 10⁵/V²).
+/// units, δ = 10⁵/V²). Overrides are in canonical units (the model scaled to a box diagonal
+/// of 1), so the same numbers mean the same whatever the model's units.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
 pub struct WeightOverrides {
     /// α, the Euclidean weight.
@@ -74,7 +75,8 @@ pub struct SegmentOptions {
     pub allow_negative: bool,
     /// Weight each face's error by its area (default false: the paper's plain sum).
     pub area_weighting: bool,
-    /// Seed of the random choices (default 1).
+    /// Seed of the random choices (default 1). The current loop makes none: every choice is
+    /// a deterministic function of the mesh and the options.
     pub seed: u64,
     /// Worker threads; `None` uses all cores (default). The result does not depend on it.
     pub threads: Option<usize>,
@@ -109,9 +111,10 @@ pub struct Segmentation<P> {
     pub region_errors: Vec<f64>,
     /// Sum of the region errors.
     pub total_error: f64,
-    /// Total error after each iteration (seeding included), for plots and tests.
+    /// Total error after each iteration (seeding included), for plots and tests. With a fixed
+    /// region count, the last [`Segmentation::iterations`] entries are the Lloyd iterations.
     pub history: Vec<f64>,
-    /// Iterations run.
+    /// Lloyd iterations run (after seeding; teleportation rounds included).
     pub iterations: usize,
 }
 
