@@ -716,9 +716,15 @@ fn print_text(r: &Report) {
     };
     println!("RMS %       {distance} of each region's vertices, in % of the bounding-box diagonal");
     if r.proxy == "plane" {
-        println!("region   faces  normal                        RMS %");
+        println!(
+            "{:>6} {:>7}  {:<29}  {:>7}",
+            "region", "faces", "normal", "RMS %"
+        );
     } else {
-        println!("region   faces  sign  radii                                  RMS %");
+        println!(
+            "{:>6} {:>7}  {:<4}  {:<38}  {:>7}",
+            "region", "faces", "sign", "radii", "RMS %"
+        );
     }
     for g in &r.regions {
         match &g.proxy {

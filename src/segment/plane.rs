@@ -232,6 +232,45 @@ mod tests {
         assert_eq!(covered, mesh.face_count());
     }
 
+    /// The Lloyd loop with the L²,¹ metric finds a cube's six sides: six planes, zero error.
+    #[test]
+    fn segmenting_a_cube_into_six_planes_finds_its_sides() {
+        let mesh = shapes::cube(2.0, 4);
+        let options = crate::segment::SegmentOptions {
+            regions: crate::segment::RegionCount::Fixed(6),
+            ..Default::default()
+        };
+        let s = crate::segment::segment_planes(&mesh, &options).unwrap();
+        assert_eq!(s.region_count(), 6);
+        assert!(s.total_error.abs() < 1e-20, "error {}", s.total_error);
+        let mut normals: Vec<[i64; 3]> = s
+            .proxies
+            .iter()
+            .map(|p| p.normal.to_array().map(|x| x.round() as i64))
+            .collect();
+        normals.sort_unstable();
+        assert_eq!(
+            normals,
+            vec![
+                [-1, 0, 0],
+                [0, -1, 0],
+                [0, 0, -1],
+                [0, 0, 1],
+                [0, 1, 0],
+                [1, 0, 0]
+            ]
+        );
+        for (plane, faces) in s.proxies.iter().zip(s.faces_by_region()) {
+            assert_eq!(faces.len(), 32);
+            assert!((plane.point - plane.normal).length() < 1e-14, "{plane:?}");
+            for f in faces {
+                for p in mesh.corners(f as usize) {
+                    assert!(plane.distance(p) < 1e-14);
+                }
+            }
+        }
+    }
+
     #[test]
     fn the_error_is_the_area_weighted_normal_deviation() {
         // Two faces folded at a right angle: the average normal bisects them, and each face
