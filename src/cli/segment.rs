@@ -56,9 +56,6 @@ pub struct SegmentArgs {
     /// Use only positive ellipsoids (no inner surfaces for concavities).
     #[arg(long)]
     no_negative: bool,
-    /// Seed of the random choices: the same seed gives the same regions.
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
     /// Worker threads [default: all cores]. The result does not depend on it.
     #[arg(long, value_name = "N", allow_negative_numbers = true)]
     threads: Option<i64>,
@@ -110,7 +107,6 @@ struct Report {
     vertices: usize,
     faces: usize,
     bbox_diagonal: f64,
-    seed: u64,
     iterations: usize,
     seconds: f64,
     /// Sum of the region errors in the segmentation's own metric.
@@ -238,7 +234,6 @@ pub fn run(args: &SegmentArgs) -> Result<(), CliError> {
         vertices: mesh.vertex_count(),
         faces: mesh.face_count(),
         bbox_diagonal: diagonal,
-        seed: options.seed,
         iterations: summary.iterations,
         seconds,
         total_error: summary.total_error,
@@ -325,7 +320,6 @@ fn segment_options(args: &SegmentArgs) -> Result<SegmentOptions, CliError> {
             ModeArg::Volume => Mode::Volume,
         },
         allow_negative: !args.no_negative,
-        seed: args.seed,
         threads,
         ..SegmentOptions::default()
     })
@@ -702,11 +696,10 @@ fn print_text(r: &Report) {
         _ => "ellipsoids (surface mode)".to_string(),
     };
     println!(
-        "segmented   {} {what}, {} iteration(s) in {:.2} s (seed {}), total error {:.6e}",
+        "segmented   {} {what}, {} iteration(s) in {:.2} s, total error {:.6e}",
         r.regions.len(),
         r.iterations,
         r.seconds,
-        r.seed,
         r.total_error
     );
     let distance = if r.proxy == "plane" {

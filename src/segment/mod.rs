@@ -75,9 +75,6 @@ pub struct SegmentOptions {
     pub allow_negative: bool,
     /// Weight each face's error by its area (default false: the paper's plain sum).
     pub area_weighting: bool,
-    /// Seed of the random choices (default 1). The current loop makes none: every choice is
-    /// a deterministic function of the mesh and the options.
-    pub seed: u64,
     /// Worker threads; `None` uses all cores (default). The result does not depend on it.
     pub threads: Option<usize>,
     /// Most regions a tolerance may ask for (default 256).
@@ -93,7 +90,6 @@ impl Default for SegmentOptions {
             mode: Mode::Surface,
             allow_negative: true,
             area_weighting: false,
-            seed: 1,
             threads: None,
             max_regions: 256,
         }
