@@ -736,3 +736,105 @@ fn crc32fast_hash(bytes: &[u8]) -> u32 {
     }
     !crc
 }
+
+// ---------------------------------------------------------------------------------------
+// Sizes (run with `--nocapture` to see the table; spec appendix B quotes it)
+
+fn section_bytes(bytes: &[u8]) -> String {
+    let s = format::inspect(bytes, &Limits::default()).unwrap();
+    s.sections
+        .iter()
+        .map(|x| format!("{} {}/{}", x.tag, x.stored_bytes, x.raw_bytes))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+#[test]
+fn sizes_shrink_with_fewer_bits_and_with_simplification() {
+    // Eight lunes, 400 points per arc wobbling like a mesh's edge path (edge ≈ 0.008,
+    // wobble ≤ 0.003) on a unit sphere: bounding-box diagonal ≈ 3.46.
+    let dense = sample::lunes(8, 400, 0.003);
+    let diagonal = 2.0 * 3f64.sqrt();
+    println!("points  tolerance/diag  bits  bytes  error bound/diag  sections (stored/raw)");
+    let mut previous_tolerance_size = usize::MAX;
+    for rel in [0.0, 2.5e-4, 1e-3, 4e-3] {
+        let mut rep = dense.clone();
+        if rel > 0.0 {
+            rep.simplify_arcs(rel * diagonal);
+        }
+        let mut previous = 0;
+        for bits in [10, 12, 14, 16, 20] {
+            let bytes = format::encode(&rep, &EncodeOptions { bits }).unwrap();
+            let summary = format::inspect(&bytes, &Limits::default()).unwrap();
+            println!(
+                "{:6}  {:14.1e}  {bits:4}  {:5}  {:16.2e}  {}",
+                rep.points.len(),
+                rel,
+                bytes.len(),
+                summary.error_bound / diagonal,
+                section_bytes(&bytes)
+            );
+            assert!(bytes.len() >= previous, "more bits, fewer bytes?");
+            previous = bytes.len();
+        }
+        let size = format::encode(&rep, &EncodeOptions::default())
+            .unwrap()
+            .len();
+        assert!(size < previous_tolerance_size);
+        previous_tolerance_size = size;
+    }
+    // Ellipsoid storage: surface displacement of binary32 relative to the diagonal, in a
+    // file whose points set the reference length.
+    let mut simplified = dense.clone();
+    simplified.simplify_arcs(1e-3 * diagonal);
+    for (name, e) in [
+        ("lune", dense.ellipsoids[1]),
+        (
+            "flat r=1e3·diag",
+            Ellipsoid {
+                radii: DVec3::splat(1e3 * diagonal),
+                center: DVec3::new(0.0, 0.0, -1e3 * diagonal),
+                ..dense.ellipsoids[0]
+            },
+        ),
+        (
+            "flat r=10·diag",
+            Ellipsoid {
+                radii: DVec3::splat(10.0 * diagonal),
+                center: DVec3::new(0.0, 0.0, -10.0 * diagonal),
+                ..dense.ellipsoids[0]
+            },
+        ),
+    ] {
+        let mut rep = simplified.clone();
+        rep.ellipsoids[0] = e;
+        let decoded = format::decode(&encode(&rep), &Limits::default())
+            .unwrap()
+            .ellipsoids[0];
+        let single = format::encode(&simplified, &EncodeOptions::default())
+            .unwrap()
+            .len();
+        let worst = (0..200)
+            .map(|i| {
+                let t = i as f64 * 0.61;
+                let u = DVec3::new(
+                    t.cos() * (0.3 * t).sin(),
+                    t.sin() * (0.3 * t).sin(),
+                    (0.3 * t).cos(),
+                );
+                (e.from_unit_sphere(u) - decoded.from_unit_sphere(u)).length()
+            })
+            .fold(0.0, f64::max);
+        let summary = format::inspect(&encode(&rep), &Limits::default()).unwrap();
+        println!(
+            "{name}: file {} bytes (+{}), f32 ellipsoids {}/8, its surface moved ≤ {:.2e}·diag (f32 bound {:.2e})",
+            summary.total_bytes,
+            summary.total_bytes as i64 - single as i64,
+            summary.f32_ellipsoids,
+            worst / diagonal,
+            f32_displacement(&e) / diagonal
+        );
+        assert!(worst <= f32_displacement(&e) * (1.0 + 1e-9));
+        assert!(worst <= summary.error_bound);
+    }
+}

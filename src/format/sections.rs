@@ -227,14 +227,22 @@ pub(crate) fn canonicalise(rep: &Representation) -> Canonical {
     }
 }
 
-/// Predicted grid indices of canonical point `i` (spec §6.4): its predecessor's, else the
-/// previous point's, else zero.
-fn prediction(i: usize, predecessor: Option<u32>, q: &[[u32; 3]]) -> [u32; 3] {
-    let source = match predecessor {
-        Some(k) => Some(k as usize),
-        None => i.checked_sub(1),
+/// Predicted grid indices of canonical point `i` (spec §6.4): with k its predecessor and j
+/// k's predecessor, 2·q[k] − q[j] (the chain continued straight on); with no j, q[k]; with
+/// no k, the previous point's q[i − 1]; for the first point, zero. In i64: a prediction may
+/// leave the grid, the predicted point may not.
+fn prediction(i: usize, predecessor: &[Option<u32>], q: &[[u32; 3]]) -> [i64; 3] {
+    let at = |k: usize| q.get(k).map(|v| v.map(i64::from));
+    let k = predecessor.get(i).copied().flatten().map(|k| k as usize);
+    let j = k.and_then(|k| predecessor.get(k).copied().flatten().map(|j| j as usize));
+    let predicted = match (k, j) {
+        (Some(k), Some(j)) => at(k)
+            .zip(at(j))
+            .map(|(a, b)| std::array::from_fn(|x| 2 * a[x] - b[x])),
+        (Some(k), None) => at(k),
+        (None, _) => i.checked_sub(1).and_then(at),
     };
-    source.and_then(|k| q.get(k).copied()).unwrap_or([0; 3])
+    predicted.unwrap_or([0; 3])
 }
 
 // ---------------------------------------------------------------------------------------
@@ -332,10 +340,11 @@ pub(crate) fn write_points(
     w.put(&bits)?;
     w.put(&grid.min.to_array())?;
     w.put(&grid.max.to_array())?;
-    for (i, (qi, pred)) in q.iter().zip(&canon.predecessor).enumerate() {
-        let p = prediction(i, *pred, &q);
-        // Grid indices are below 2^24: the differences fit an i32.
-        let d: [i32; 3] = std::array::from_fn(|a| (i64::from(qi[a]) - i64::from(p[a])) as i32);
+    for (i, qi) in q.iter().enumerate() {
+        let p = prediction(i, &canon.predecessor, &q);
+        // Grid indices are below 2^24 and predictions within (−2^24, 2^25): the residuals
+        // fit an i32.
+        let d: [i32; 3] = std::array::from_fn(|a| (i64::from(qi[a]) - p[a]) as i32);
         w.put(&d)?;
     }
     Ok((w.into_bytes(), grid))
@@ -363,12 +372,12 @@ pub(crate) fn read_points(
     let grid = Grid { bits, min, max };
     let levels = i64::from(grid.levels());
     let mut q: Vec<[u32; 3]> = Vec::with_capacity(n);
-    for (i, pred) in predecessor.iter().enumerate() {
-        let d: [i32; 3] = r.get("P7: delta is not a zig-zag varint")?;
-        let p = prediction(i, *pred, &q);
+    for i in 0..n {
+        let d: [i32; 3] = r.get("P7: residual is not a zig-zag varint")?;
+        let p = prediction(i, predecessor, &q);
         let mut qi = [0u32; 3];
         for a in 0..3 {
-            let v = i64::from(p[a]) + i64::from(d[a]);
+            let v = p[a] + i64::from(d[a]);
             if !(0..=levels).contains(&v) {
                 return Err(r.error("P8: grid index out of range"));
             }
