@@ -238,7 +238,7 @@ impl Representation {
 
     fn validate_ellipsoids(&self) -> Result<(), InvalidRepresentation> {
         if u32::try_from(self.ellipsoids.len()).is_err() {
-            return Err(invalid(Part::Ellipsoids, "E0: too many regions"));
+            return Err(invalid(Part::Ellipsoids, "E4: too many regions"));
         }
         for e in &self.ellipsoids {
             if !(e.center.is_finite() && e.rotation.is_finite() && e.radii.is_finite()) {
@@ -467,5 +467,123 @@ impl Representation {
             .iter()
             .map(|&i| self.points.get(i as usize).copied())
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::format::sample;
+
+    fn rule(rep: &Representation) -> &'static str {
+        rep.validate().unwrap_err().what.split(':').next().unwrap()
+    }
+
+    #[test]
+    fn validation_names_the_broken_rule() {
+        let good = sample::three_regions_two_junctions();
+        assert_eq!(good.validate(), Ok(()));
+        let mut r = good.clone();
+        r.ellipsoids[0].rotation *= 1.01;
+        assert_eq!(rule(&r), "E3");
+        let mut r = good.clone();
+        r.points[3].x = f64::INFINITY;
+        assert_eq!(rule(&r), "P1");
+        let mut r = good.clone();
+        r.arcs[0].points.truncate(1);
+        assert_eq!(rule(&r), "A4");
+        let mut r = good.clone();
+        r.arcs[1].points[2] = r.arcs[1].points[1];
+        assert_eq!(rule(&r), "A5");
+        let mut r = good.clone();
+        r.arcs[2].right = Side::Border;
+        assert_eq!(rule(&r), "C3");
+        let mut r = good.clone();
+        r.cycles[1][0].outer = false;
+        assert_eq!(rule(&r), "C6");
+        let mut r = good.clone();
+        let (a, b) = (r.cycles[0][0].arcs[0], r.cycles[0][0].arcs[1]);
+        r.cycles[0] = vec![
+            Cycle {
+                arcs: vec![a],
+                outer: true,
+            },
+            Cycle {
+                arcs: vec![b],
+                outer: false,
+            },
+        ];
+        assert_eq!(rule(&r), "C4");
+        let mut r = good.clone();
+        r.cycles.pop();
+        assert_eq!(rule(&r), "C1");
+        let mut r = good;
+        r.metadata.measured_error = Some(-1.0);
+        assert_eq!(rule(&r), "M1");
+    }
+
+    #[test]
+    fn boundary_graphs_convert_directly() {
+        let lunes = sample::three_regions_two_junctions();
+        // The same topology as a boundary graph over a "mesh" whose vertex 2i holds pool
+        // point i (odd vertices are not on any boundary).
+        let positions: Vec<DVec3> = lunes
+            .points
+            .iter()
+            .flat_map(|&p| [p, DVec3::splat(9.0)])
+            .collect();
+        let graph = BoundaryGraph {
+            vertices: (0..lunes.points.len() as u32).map(|i| 2 * i).collect(),
+            junctions: vec![0, 2],
+            arcs: lunes
+                .arcs
+                .iter()
+                .map(|a| boundary::Arc {
+                    vertices: a.points.iter().map(|&i| 2 * i).collect(),
+                    closed: a.closed,
+                    left: a.left,
+                    right: match a.right {
+                        Side::Region(r) => boundary::Side::Region(r),
+                        Side::Border => boundary::Side::Border,
+                    },
+                })
+                .collect(),
+            cycles: lunes
+                .cycles
+                .iter()
+                .map(|cs| {
+                    cs.iter()
+                        .map(|c| boundary::Cycle {
+                            arcs: c
+                                .arcs
+                                .iter()
+                                .map(|r| boundary::ArcRef {
+                                    arc: r.arc,
+                                    reversed: r.reversed,
+                                })
+                                .collect(),
+                            outer: c.outer,
+                        })
+                        .collect()
+                })
+                .collect(),
+        };
+        let rep = Representation::from_boundary(
+            lunes.ellipsoids.clone(),
+            &positions,
+            &graph,
+            lunes.metadata.clone(),
+        )
+        .unwrap();
+        assert_eq!(rep, lunes);
+        let mut broken = graph;
+        broken.arcs[0].vertices[1] = 1; // not a boundary vertex
+        assert!(Representation::from_boundary(
+            lunes.ellipsoids.clone(),
+            &positions,
+            &broken,
+            Metadata::default()
+        )
+        .is_err());
     }
 }

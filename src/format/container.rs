@@ -254,7 +254,14 @@ pub fn inflate(section: &SectionView<'_>, budget: u64) -> Result<Vec<u8>, Decode
         }
         return Ok(section.stored.to_vec());
     }
-    let capacity = usize::try_from(raw_length).map_err(|_| format(tag, "S2: too long"))?;
+    // Reserve what the stored bytes can plausibly inflate to, not what the file claims: a
+    // few hostile bytes must not buy a large allocation. The output grows as it is produced,
+    // and `take` stops it one byte past the raw length.
+    let plausible = (section.stored.len() as u64)
+        .saturating_mul(8)
+        .saturating_add(4096);
+    let capacity =
+        usize::try_from(raw_length.min(plausible)).map_err(|_| format(tag, "S2: too long"))?;
     let mut out = Vec::with_capacity(capacity);
     let mut decoder = DeflateDecoder::new(section.stored);
     (&mut decoder)

@@ -174,16 +174,13 @@ pub fn decode(bytes: &[u8], limits: &Limits) -> Result<Representation, DecodeErr
 /// Decodes a file and summarises it, with stored and raw bytes per section.
 pub fn inspect(bytes: &[u8], limits: &Limits) -> Result<FileSummary, DecodeError> {
     let (rep, details) = decode_with_details(bytes, limits)?;
-    let f32_ellipsoids = sections::write_ellipsoids(&rep.ellipsoids, 0.0)
-        .map(|(_, n)| n)
-        .unwrap_or(0);
     Ok(FileSummary {
         major: details.major,
         minor: details.minor,
         total_bytes: bytes.len() as u64,
         sections: details.sections,
         regions: rep.ellipsoids.len(),
-        f32_ellipsoids,
+        f32_ellipsoids: details.f32_ellipsoids,
         arcs: rep.arcs.len(),
         points: rep.points.len(),
         arc_points: rep.arcs.iter().map(|a| a.points.len()).sum(),
@@ -200,6 +197,7 @@ struct Details {
     minor: u16,
     sections: Vec<SectionSummary>,
     grid: Grid,
+    f32_ellipsoids: usize,
 }
 
 const KNOWN_TAGS: [Tag; 5] = [TAG_META, TAG_ELPS, TAG_ARCS, TAG_PNTS, TAG_CYCL];
@@ -279,7 +277,7 @@ fn decode_with_details(
     };
     let raw = required(payload(TAG_ELPS)?, TAG_ELPS)?;
     let mut r = Reader::new(TAG_ELPS, &raw);
-    let ellipsoids = sections::read_ellipsoids(&mut r, limits)?;
+    let (ellipsoids, f32_ellipsoids) = sections::read_ellipsoids(&mut r, limits)?;
     finish(r)?;
     drop(raw);
 
@@ -319,6 +317,7 @@ fn decode_with_details(
             minor: container.minor,
             sections: summaries,
             grid,
+            f32_ellipsoids,
         },
     ))
 }

@@ -140,13 +140,15 @@ pub(crate) fn write_ellipsoids(
     Ok((w.into_bytes(), singles))
 }
 
+/// The ellipsoids, and how many were stored in binary32.
 pub(crate) fn read_ellipsoids(
     r: &mut Reader<'_>,
     limits: &Limits,
-) -> Result<Vec<Ellipsoid>, DecodeError> {
+) -> Result<(Vec<Ellipsoid>, usize), DecodeError> {
     let max = limits.max_regions.min(MAX_REGIONS);
     let n = r.count("regions", max, MIN_ELLIPSOID_BYTES)?;
     let mut out = Vec::with_capacity(n);
+    let mut singles = 0;
     for _ in 0..n {
         let (center, rotation, radii, negative) = match r.get("E0: malformed ellipsoid")? {
             WireEllipsoid::F32 {
@@ -154,12 +156,15 @@ pub(crate) fn read_ellipsoids(
                 rotation,
                 radii,
                 negative,
-            } => (
-                center.map(f64::from),
-                rotation.map(f64::from),
-                radii.map(f64::from),
-                negative,
-            ),
+            } => {
+                singles += 1;
+                (
+                    center.map(f64::from),
+                    rotation.map(f64::from),
+                    radii.map(f64::from),
+                    negative,
+                )
+            }
             WireEllipsoid::F64 {
                 center,
                 rotation,
@@ -178,7 +183,7 @@ pub(crate) fn read_ellipsoids(
             },
         });
     }
-    Ok(out)
+    Ok((out, singles))
 }
 
 // ---------------------------------------------------------------------------------------

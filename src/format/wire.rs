@@ -113,12 +113,12 @@ impl<'a> Reader<'a> {
         max: u64,
         min_item_bytes: u64,
     ) -> Result<usize, DecodeError> {
-        let n: u64 = self.get("count is not a varint")?;
+        let n: u64 = self.get("X1: count is not a varint")?;
         check(limit_name, used.saturating_add(n), max)?;
         if n.saturating_mul(min_item_bytes) > self.bytes.len() as u64 {
-            return Err(self.error("count exceeds the bytes left"));
+            return Err(self.error("X2: count exceeds the bytes left"));
         }
-        usize::try_from(n).map_err(|_| self.error("count exceeds the address space"))
+        usize::try_from(n).map_err(|_| self.error("X2: count exceeds the address space"))
     }
 
     /// Bytes not read yet.
