@@ -226,7 +226,7 @@ impl Representation {
         Ok(rep)
     }
 
-    /// Checks every invariant of `spec/ELLIP.md` section 6 (rules E1–E3, P1–P3, A1–A6,
+    /// Checks every invariant of `spec/ELLIP.md` section 6 (rules E1–E4, P1, P3, A1–A5,
     /// C1–C6, M1).
     pub fn validate(&self) -> Result<(), InvalidRepresentation> {
         self.validate_ellipsoids()?;

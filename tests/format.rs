@@ -200,6 +200,7 @@ fn golden_files_decode_to_their_committed_digests() {
             digest == committed,
             "{name}.ellip no longer decodes to {name}.json: a format change must be deliberate"
         );
+        println!("{name}: {} bytes: {}", bytes.len(), section_bytes(&bytes));
         // The committed file is what today's encoder writes for its source.
         assert!(
             encode(&rep) == bytes,

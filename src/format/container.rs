@@ -142,7 +142,7 @@ fn le_u64(b: &[u8], at: usize) -> Option<u64> {
     Some(u64::from_le_bytes(b.get(at..at + 8)?.try_into().ok()?))
 }
 
-/// Parses the header and the section framing of `bytes` (spec §3–4, rules H1–H6, S1–S3),
+/// Parses the header and the section framing of `bytes` (spec §3–4, rules H1–H5, S1–S3),
 /// verifying every CRC-32. Payloads are not inflated.
 pub fn read_container<'a>(
     bytes: &'a [u8],

@@ -105,8 +105,14 @@ pub struct FileSummary {
 /// Encodes `rep` (spec §6): validates it, drops pool points no arc uses, renumbers the pool
 /// in order of first use along the arcs, quantises it, and writes a version 1.0 file.
 ///
-/// Ellipsoids are stored in binary32 when that moves their surface by at most an eighth of
-/// a grid step's diagonal scale (the exact rule is in spec §6.2), else in binary64.
+/// Ellipsoids are stored in binary32 when that is exact or moves their surface by at most
+/// L·2^−(bits+3), L the pool's bounding-box diagonal — a quarter of the grid's own worst
+/// case on a cube — else in binary64 (spec §11). Deterministic: equal inputs give equal bytes,
+/// and re-encoding a decoded file gives the same bytes (spec §11 states the condition).
+///
+/// Errors: [`EncodeError::Options`] for bits outside 1..=24, [`EncodeError::Invalid`] for a
+/// representation that breaks a rule of spec §6, [`EncodeError::TooLarge`] beyond the
+/// normative maxima of spec §9.
 pub fn encode(rep: &Representation, options: &EncodeOptions) -> Result<Vec<u8>, EncodeError> {
     if !(MIN_BITS..=MAX_BITS).contains(&options.bits) {
         return Err(EncodeError::Options {
@@ -150,7 +156,7 @@ pub fn encode(rep: &Representation, options: &EncodeOptions) -> Result<Vec<u8>, 
     write_container(MAJOR, MINOR, 0, &sections)
 }
 
-/// The surface displacement the binary32 ellipsoid encoding may cause (spec §6.2): the
+/// The surface displacement the binary32 ellipsoid encoding may cause (spec §11): the
 /// reference length L (the point box's diagonal, or with no points the largest ellipsoid
 /// diameter) times 2^−(bits+3).
 fn ellipsoid_tolerance(rep: &Representation, grid: &Grid) -> f64 {

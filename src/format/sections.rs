@@ -81,11 +81,11 @@ enum WireEllipsoid {
 /// Smallest encoded ellipsoid: variant 1 + 10 × 4 + 1 bytes.
 const MIN_ELLIPSOID_BYTES: u64 = 42;
 
-/// The encoder normalises a rotation whose |‖q‖² − 1| exceeds this (spec §6.2).
+/// The encoder normalises a rotation whose |‖q‖² − 1| exceeds this (spec §11).
 const ENCODER_RENORMALISE: f64 = 1e-6;
 
 /// Chooses binary32 when it is exact, or when the worst-case surface displacement its
-/// rounding causes, 2⁻²⁴·(‖c‖ + 6·r_max), is within `tolerance` (spec §6.2, encoder rule).
+/// rounding causes, 2⁻²⁴·(‖c‖ + 6·r_max), is within `tolerance` (spec §11, item 4).
 fn to_wire(e: &Ellipsoid, tolerance: f64) -> WireEllipsoid {
     let q = if (e.rotation.length_squared() - 1.0).abs() > ENCODER_RENORMALISE {
         e.rotation.normalize()

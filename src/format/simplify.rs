@@ -8,6 +8,12 @@
 
 use glam::DVec3;
 
+/// Suggested simplification tolerance as a fraction of the mesh's bounding-box diagonal:
+/// 10⁻³. The default point grid ([`super::DEFAULT_BITS`]) adds at most 1.2·10⁻⁴ of the
+/// diagonal of the points' box, so a boundary point ends within about 1.1·10⁻³ of the
+/// diagonal of where it was (spec appendix B measures sizes for this pair).
+pub const DEFAULT_RELATIVE_TOLERANCE: f64 = 1e-3;
+
 /// Distance from `p` to the segment `a`–`b`.
 fn distance_to_segment(p: DVec3, a: DVec3, b: DVec3) -> f64 {
     let ab = b - a;
