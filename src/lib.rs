@@ -18,7 +18,7 @@
 //! | segment | [`segment`] | Lloyd iteration into connected regions, each with its ellipsoid |
 //! | boundaries | [`boundary`] | arcs, junctions and cycles between regions; their smoothing |
 //! | represent | [`representation`] | ellipsoids, boundary-point pool, shared arcs, cycles; arc simplification |
-//! | store | [`format`] | the `.ellip` file: versioned encoder, hardened decoder (`spec/ELLIP.md`) |
+//! | store | [`format`](mod@format) | the `.ellip` file: versioned encoder, hardened decoder (`spec/ELLIP.md`) |
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
