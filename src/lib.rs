@@ -17,14 +17,18 @@
 //! | fit | [`ellipsoid`] | the ellipsoid primitive, the paper's error metrics, robust fitting |
 //! | segment | [`segment`] | Lloyd iteration into connected regions, each with its ellipsoid |
 //! | boundaries | [`boundary`] | arcs, junctions and cycles between regions; their smoothing |
+//! | represent | [`representation`] | ellipsoids, boundary-point pool, shared arcs, cycles; arc simplification |
+//! | store | [`format`](mod@format) | the `.ellip` file: versioned encoder, hardened decoder (`spec/ELLIP.md`) |
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
 pub mod boundary;
 pub mod ellipsoid;
 pub mod export;
+pub mod format;
 pub mod import;
 pub mod mesh;
+pub mod representation;
 pub mod rng;
 pub mod segment;
 pub mod synth;

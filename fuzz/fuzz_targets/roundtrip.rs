@@ -1,0 +1,113 @@
+//! An arbitrary representation → encode → decode: equal up to the stated quantisation
+//! bounds, topology and metadata exact, encoding deterministic.
+#![no_main]
+
+use arbitrary::Arbitrary;
+use ellip::format::sample::{self, Piece, RawEllipsoid, Recipe};
+use ellip::format::{self, EncodeOptions, Limits};
+use ellip::representation::Metadata;
+use libfuzzer_sys::fuzz_target;
+
+#[derive(Arbitrary, Debug)]
+enum ArbPiece {
+    Lunes(u8, u8),
+    Loop(u8, bool),
+    Whole,
+}
+
+#[derive(Arbitrary, Debug)]
+struct Input {
+    ellipsoids: Vec<([f64; 3], [f64; 4], [f64; 3], bool)>,
+    coordinates: Vec<[f64; 3]>,
+    pieces: Vec<ArbPiece>,
+    bits: u8,
+    metadata: (u64, u64, Option<f64>, Option<f64>, Option<u64>),
+}
+
+fuzz_target!(|input: Input| {
+    let recipe = Recipe {
+        ellipsoids: input
+            .ellipsoids
+            .iter()
+            .map(|&(center, rotation, radii, negative)| RawEllipsoid {
+                center,
+                rotation,
+                radii,
+                negative,
+            })
+            .collect(),
+        coordinates: input.coordinates.clone(),
+        pieces: input
+            .pieces
+            .iter()
+            .take(8)
+            .map(|p| match *p {
+                ArbPiece::Lunes(lunes, interior) => Piece::Lunes {
+                    lunes,
+                    interior: interior % 32,
+                },
+                ArbPiece::Loop(points, border) => Piece::Loop { points, border },
+                ArbPiece::Whole => Piece::Whole,
+            })
+            .collect(),
+        metadata: Metadata {
+            source_vertices: input.metadata.0,
+            source_faces: input.metadata.1,
+            simplify_tolerance: input.metadata.2,
+            measured_error: input.metadata.3,
+            suggested_vertices: input.metadata.4,
+        },
+    };
+    let rep = sample::build(&recipe);
+    let options = EncodeOptions {
+        bits: 1 + input.bits % 24,
+    };
+    let bytes = format::encode(&rep, &options).expect("a valid representation encodes");
+    assert_eq!(
+        format::encode(&rep, &options).unwrap(),
+        bytes,
+        "deterministic"
+    );
+    let decoded = format::decode(&bytes, &Limits::default()).expect("its encoding decodes");
+    let summary = format::inspect(&bytes, &Limits::default()).unwrap();
+    let bound = summary.error_bound;
+    // Re-encoding is byte-identical when no axis of the grid is narrower than the rounding
+    // of its coordinates (spec §11).
+    let grid = summary.grid;
+    let well_conditioned = (0..3).all(|a| {
+        let extent = grid.max[a] - grid.min[a];
+        let magnitude = grid.min[a].abs().max(grid.max[a].abs());
+        extent == 0.0 || extent > 2f64.powi(i32::from(grid.bits) + 4) * f64::EPSILON * magnitude
+    });
+    if well_conditioned {
+        let again = format::encode(&decoded, &options).expect("a decoded representation encodes");
+        assert!(again == bytes, "re-encoding changed the bytes");
+    }
+
+    assert_eq!(decoded.cycles, rep.cycles);
+    assert_eq!(decoded.metadata, rep.metadata);
+    assert_eq!(decoded.arcs.len(), rep.arcs.len());
+    for i in 0..rep.arcs.len() {
+        let (a, b) = (&rep.arcs[i], &decoded.arcs[i]);
+        assert_eq!((a.closed, a.left, a.right), (b.closed, b.left, b.right));
+        let pa = rep.arc_positions(i).unwrap();
+        let pb = decoded.arc_positions(i).unwrap();
+        assert_eq!(pa.len(), pb.len());
+        for (p, q) in pa.iter().zip(&pb) {
+            // The bound, plus the rounding of the decoder's binary64 arithmetic.
+            let slack = 4.0 * f64::EPSILON * p.abs().max_element().max(1.0);
+            assert!(
+                (*p - *q).length() <= bound * (1.0 + 1e-9) + slack,
+                "{p} {q} {bound}"
+            );
+        }
+    }
+    for (a, b) in rep.ellipsoids.iter().zip(&decoded.ellipsoids) {
+        assert_eq!(a.sign, b.sign);
+        let tolerance = (a.center.length() + 6.0 * a.radii.max_element()) * 2f64.powi(-24);
+        for u in [glam::DVec3::X, glam::DVec3::Y, glam::DVec3::Z] {
+            let d = (a.from_unit_sphere(u) - b.from_unit_sphere(u)).length();
+            assert!(d <= tolerance * (1.0 + 1e-9), "{d} > {tolerance}");
+        }
+    }
+});
