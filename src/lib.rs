@@ -17,6 +17,7 @@
 //! | fit | [`ellipsoid`] | the ellipsoid primitive, the paper's error metrics, robust fitting |
 //! | segment | [`segment`] | Lloyd iteration into connected regions, each with its ellipsoid |
 //! | boundaries | [`boundary`] | arcs, junctions and cycles between regions; their smoothing |
+//! | encode | [`encode`] | the whole encoder: mesh → representation → `.ellip` bytes |
 //! | represent | [`representation`] | ellipsoids, boundary-point pool, shared arcs, cycles; arc simplification |
 //! | store | [`format`](mod@format) | the `.ellip` file: versioned encoder, hardened decoder (`spec/ELLIP.md`) |
 #![forbid(unsafe_code)]
@@ -24,6 +25,7 @@
 
 pub mod boundary;
 pub mod ellipsoid;
+pub mod encode;
 pub mod export;
 pub mod format;
 pub mod import;

@@ -415,8 +415,23 @@ impl Representation {
                 .iter()
                 .map(|&i| uses.get(i as usize).is_some_and(|&u| u > 1))
                 .collect();
-            let keep =
-                crate::format::simplify::simplify_polyline(&chain, &pinned, a.closed, tolerance);
+            // An open arc that leaves a junction and comes back to it is a ring through that
+            // junction: simplify it as a closed loop (at least three distinct points) and close
+            // it again, so that it keeps the four points rule A4 asks of it.
+            let n = chain.len();
+            let ring = !a.closed && n >= 2 && a.first() == a.last();
+            let keep = if ring {
+                let mut keep = crate::format::simplify::simplify_polyline(
+                    &chain[..n - 1],
+                    &pinned[..n - 1],
+                    true,
+                    tolerance,
+                );
+                keep.push(n - 1);
+                keep
+            } else {
+                crate::format::simplify::simplify_polyline(&chain, &pinned, a.closed, tolerance)
+            };
             a.points = keep
                 .iter()
                 .filter_map(|&k| a.points.get(k).copied())
@@ -585,5 +600,41 @@ mod tests {
             Metadata::default()
         )
         .is_err());
+    }
+
+    /// An open arc that leaves a junction and returns to it (found encoding teddy at K = 32)
+    /// keeps the four points rule A4 asks for, however coarse the tolerance.
+    #[test]
+    fn a_ring_through_a_junction_stays_a_ring() {
+        let circle: Vec<DVec3> = (0..24)
+            .map(|k| {
+                let t = std::f64::consts::TAU * k as f64 / 24.0;
+                DVec3::new(t.cos(), t.sin(), 0.0)
+            })
+            .collect();
+        let mut chain: Vec<u32> = (0..24).collect();
+        chain.push(0);
+        let mut rep = Representation {
+            ellipsoids: vec![Ellipsoid::sphere(DVec3::ZERO, 1.0); 2],
+            points: circle,
+            arcs: vec![Arc {
+                points: chain,
+                closed: false,
+                left: 0,
+                right: Side::Region(1),
+            }],
+            cycles: vec![Vec::new(), Vec::new()],
+            metadata: Metadata::default(),
+        };
+        for tolerance in [1e-3, 0.1, 10.0] {
+            let mut r = rep.clone();
+            r.simplify_arcs(tolerance);
+            let a = &r.arcs[0];
+            assert!(a.points.len() >= 4, "{tolerance}: {:?}", a.points);
+            assert_eq!(a.first(), a.last());
+            assert!(a.points.windows(2).all(|w| w[0] != w[1]));
+        }
+        rep.simplify_arcs(10.0);
+        assert_eq!(rep.arcs[0].points.len(), 4);
     }
 }

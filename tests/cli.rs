@@ -170,3 +170,54 @@ fn malformed_files_fail_cleanly() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn encode_writes_an_ellip_file_that_info_reads() {
+    let dir = temp_dir("encode");
+    let out = dir.join("blob2.ellip");
+    let run = ellip(&[
+        "encode",
+        &fixture("blob2.obj"),
+        "-k",
+        "4",
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let bytes = std::fs::read(&out).unwrap();
+    assert_eq!(report["bytes"].as_u64(), Some(bytes.len() as u64));
+    assert_eq!(report["regions"], 4);
+    assert!(report["ratio_to_raw"].as_f64().unwrap() > 10.0);
+
+    let info = ellip(&["info", out.to_str().unwrap(), "--json"]);
+    assert!(
+        info.status.success(),
+        "{}",
+        String::from_utf8_lossy(&info.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
+    assert_eq!(v["version"], "1.0");
+    assert_eq!(v["regions"].as_array().unwrap().len(), 4);
+    assert_eq!(v["source_faces"], report["faces"]);
+    assert_eq!(v["bytes"].as_u64(), Some(bytes.len() as u64));
+
+    // The same input and options give the same bytes; `-o -` writes them to stdout.
+    let piped = ellip(&["encode", &fixture("blob2.obj"), "-k", "4", "-o", "-", "-q"]);
+    assert!(piped.status.success());
+    assert_eq!(piped.stdout, bytes);
+
+    // A damaged file is one clean error line.
+    let mut damaged = bytes.clone();
+    let middle = damaged.len() / 2;
+    damaged[middle] ^= 0x40;
+    let bad = dir.join("damaged.ellip");
+    std::fs::write(&bad, &damaged).unwrap();
+    assert_clean_failure(&ellip(&["info", bad.to_str().unwrap()]), "damaged .ellip");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

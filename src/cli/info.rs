@@ -2,15 +2,19 @@
 
 use super::{CliError, ReadArgs};
 use clap::Args;
+use ellip::ellipsoid::Sign;
+use ellip::format::{consts::MAGIC, decode, inspect, Limits};
 use ellip::import::{read_mesh, RepairReport};
 use ellip::mesh::curvature::mean_curvature;
 use ellip::Mesh;
 use serde::Serialize;
-use std::path::PathBuf;
+use std::io::Read;
+use std::path::{Path, PathBuf};
 
 #[derive(Debug, Args)]
 pub struct InfoArgs {
-    /// The mesh file (.obj, .gltf, .glb, .ply, .stl, .off).
+    /// The mesh file (.obj, .gltf, .glb, .ply, .stl, .off) or `.ellip` file (`-`: a `.ellip`
+    /// file on standard input).
     input: PathBuf,
     /// Print JSON instead of text.
     #[arg(long)]
@@ -59,6 +63,9 @@ struct CurvatureRange {
 }
 
 pub fn run(args: &InfoArgs) -> Result<(), CliError> {
+    if let Some(bytes) = read_if_ellip(&args.input)? {
+        return describe_ellip(&args.input, &bytes, args.json);
+    }
     let imported = read_mesh(&args.input, &args.read.import_options()?)?;
     let file_bytes = std::fs::metadata(&args.input)?.len();
     let info = describe(
@@ -178,4 +185,167 @@ fn print_text(i: &MeshInfo) {
     for w in &i.warnings {
         println!("warning         {w}");
     }
+}
+
+/// The bytes of a `.ellip` input (named `.ellip`, starting with its magic, or `-`), else
+/// `None`. Reading stops at the decoder's file-size limit plus one byte.
+fn read_if_ellip(path: &Path) -> Result<Option<Vec<u8>>, CliError> {
+    let cap = Limits::default().max_file_bytes + 1;
+    let mut bytes = Vec::new();
+    if path.as_os_str() == "-" {
+        std::io::stdin().lock().take(cap).read_to_end(&mut bytes)?;
+        return Ok(Some(bytes));
+    }
+    let named = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("ellip"));
+    let io_error = |e: std::io::Error| format!("{}: {e}", path.display());
+    let mut file = std::fs::File::open(path).map_err(io_error)?;
+    if !named {
+        let mut magic = [0u8; 8];
+        let n = file.read(&mut magic).map_err(io_error)?;
+        if magic[..n] != MAGIC[..] {
+            return Ok(None);
+        }
+        bytes.extend_from_slice(&magic[..n]);
+    }
+    file.take(cap).read_to_end(&mut bytes).map_err(io_error)?;
+    Ok(Some(bytes))
+}
+
+/// What `ellip info` reports about a `.ellip` file.
+#[derive(Debug, Serialize)]
+struct EllipInfo {
+    file: String,
+    version: String,
+    bytes: u64,
+    regions: Vec<RegionInfo>,
+    arcs: usize,
+    arc_points: usize,
+    boundary_points: usize,
+    cycles: usize,
+    grid_bits: u8,
+    /// Worst-case distance between a decoded boundary point and the encoded one.
+    point_error_bound: f64,
+    source_vertices: u64,
+    source_faces: u64,
+    simplify_tolerance: Option<f64>,
+    measured_error: Option<f64>,
+    suggested_vertices: Option<u64>,
+    sections: Vec<SectionInfo>,
+}
+
+#[derive(Debug, Serialize)]
+struct RegionInfo {
+    sign: &'static str,
+    center: [f64; 3],
+    radii: [f64; 3],
+    rotation: [f64; 4],
+    cycles: usize,
+}
+
+#[derive(Debug, Serialize)]
+struct SectionInfo {
+    tag: String,
+    stored_bytes: u64,
+    raw_bytes: u64,
+    compressed: bool,
+    known: bool,
+}
+
+fn describe_ellip(path: &Path, bytes: &[u8], json: bool) -> Result<(), CliError> {
+    let limits = Limits::default();
+    let in_file = |e: ellip::format::DecodeError| format!("{}: {e}", path.display());
+    let summary = inspect(bytes, &limits).map_err(in_file)?;
+    let rep = decode(bytes, &limits).map_err(in_file)?;
+    let info = EllipInfo {
+        file: path.display().to_string(),
+        version: format!("{}.{}", summary.major, summary.minor),
+        bytes: summary.total_bytes,
+        regions: rep
+            .ellipsoids
+            .iter()
+            .enumerate()
+            .map(|(r, e)| RegionInfo {
+                sign: match e.sign {
+                    Sign::Positive => "positive",
+                    Sign::Negative => "negative",
+                },
+                center: e.center.to_array(),
+                radii: e.radii.to_array(),
+                rotation: e.rotation.to_array(),
+                cycles: rep.cycles.get(r).map_or(0, Vec::len),
+            })
+            .collect(),
+        arcs: summary.arcs,
+        arc_points: summary.arc_points,
+        boundary_points: summary.points,
+        cycles: summary.cycles,
+        grid_bits: summary.grid.bits,
+        point_error_bound: summary.error_bound,
+        source_vertices: summary.metadata.source_vertices,
+        source_faces: summary.metadata.source_faces,
+        simplify_tolerance: summary.metadata.simplify_tolerance,
+        measured_error: summary.metadata.measured_error,
+        suggested_vertices: summary.metadata.suggested_vertices,
+        sections: summary
+            .sections
+            .iter()
+            .map(|s| SectionInfo {
+                tag: s.tag.to_string(),
+                stored_bytes: s.stored_bytes,
+                raw_bytes: s.raw_bytes,
+                compressed: s.flags & 1 != 0,
+                known: s.known,
+            })
+            .collect(),
+    };
+    if json {
+        println!("{}", serde_json::to_string_pretty(&info)?);
+        return Ok(());
+    }
+    println!(
+        "file            {} (.ellip {}, {} bytes)",
+        info.file, info.version, info.bytes
+    );
+    println!(
+        "source          {} vertices, {} faces",
+        info.source_vertices, info.source_faces
+    );
+    println!(
+        "boundaries      {} arcs, {} boundary points ({} arc points), {} cycles",
+        info.arcs, info.boundary_points, info.arc_points, info.cycles
+    );
+    println!(
+        "point grid      {} bits per axis, worst-case point error {:.3e}",
+        info.grid_bits, info.point_error_bound
+    );
+    if let Some(t) = info.simplify_tolerance {
+        println!("simplified to   {t:.3e}");
+    }
+    if let Some(e) = info.measured_error {
+        println!("measured error  {e:.3e}");
+    }
+    println!("regions         {}", info.regions.len());
+    println!("  region  sign  radii                                  cycles");
+    for (r, region) in info.regions.iter().enumerate() {
+        let [a, b, c] = region.radii;
+        println!(
+            "  {r:>6}  {}  {a:>12.6} {b:>12.6} {c:>12.6}  {:>6}",
+            if region.sign == "positive" { "+" } else { "-" },
+            region.cycles
+        );
+    }
+    println!("sections        tag    stored      raw");
+    for s in &info.sections {
+        println!(
+            "                {}  {:>8} {:>8}{}{}",
+            s.tag,
+            s.stored_bytes,
+            s.raw_bytes,
+            if s.compressed { "  deflate" } else { "" },
+            if s.known { "" } else { "  (unknown, skipped)" }
+        );
+    }
+    Ok(())
 }

@@ -1,6 +1,7 @@
 //! Argument definitions and dispatch for the `ellip` binary.
 
 mod convert;
+mod encode;
 mod fixtures;
 mod info;
 mod segment;
@@ -17,7 +18,9 @@ Examples:
   ellip info bunny.ply --json                   the same as JSON, for scripts
   ellip convert scan.stl scan.glb               convert between OBJ, glTF/GLB, PLY, STL and OFF
   ellip convert part.obj part.ply --weld 1e-6   join vertices closer than 1e-6 on the way
-  ellip segment bunny.obj -k 12 -o seg.glb      12 ellipsoidal regions, coloured, with statistics";
+  ellip segment bunny.obj -k 12 -o seg.glb      12 ellipsoidal regions, coloured, with statistics
+  ellip encode hand.obj -k 18 -o hand.ellip     store 18 ellipsoidal regions in a few kilobytes
+  ellip info hand.ellip                         version, regions, arcs, bytes per section";
 
 /// ellip: dense triangle meshes as a few dozen ellipsoidal regions.
 #[derive(Debug, Parser)]
@@ -47,6 +50,15 @@ enum Command {
         after_help = "Examples:\n  ellip segment fixtures/meshes/blob2.obj -k 4 -o blob2-regions.glb\n  ellip segment bunny.obj --tolerance 0.01 --mode volume --json\n  ellip segment bunny.obj -k 12 --planes -o planes.ply"
     )]
     Segment(segment::SegmentArgs),
+    /// Encode a mesh as a `.ellip` file: ellipsoidal regions and the boundaries between them.
+    ///
+    /// Segments the mesh (the same options as `segment`), smooths and simplifies the
+    /// boundaries, quantises them and writes the file atomically; reports the size and the
+    /// ratio to the input and to raw float32 positions + u32 indices.
+    #[command(
+        after_help = "Example:\n  ellip encode fixtures/meshes/blob3.obj -k 5 -o blob3.ellip"
+    )]
+    Encode(encode::EncodeArgs),
     /// Regenerate the committed fixture meshes (for developers).
     #[command(hide = true)]
     Fixtures(fixtures::FixturesArgs),
@@ -83,6 +95,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
     match cli.command {
         Command::Info(args) => info::run(&args),
         Command::Convert(args) => convert::run(&args),
+        Command::Encode(args) => encode::run(&args),
         Command::Segment(args) => segment::run(&args),
         Command::Fixtures(args) => fixtures::run(&args),
     }
@@ -102,6 +115,11 @@ pub fn install_panic_hook() {
             .map(|s| s.to_string())
             .or_else(|| info.payload().downcast_ref::<String>().cloned())
             .unwrap_or_default();
+        // `ellip info x | head`: the reader went away. Not a bug; stop quietly, with the
+        // status a shell gives a process ended by SIGPIPE.
+        if what.contains("failed printing to stdout") && what.contains("Broken pipe") {
+            std::process::exit(141);
+        }
         let at = info
             .location()
             .map(|l| format!(" at {}:{}", l.file(), l.line()))

@@ -35,6 +35,25 @@ pub struct SegmentArgs {
     /// Without it, only the statistics are printed.
     #[arg(long, short, value_name = "FILE")]
     output: Option<PathBuf>,
+    #[command(flatten)]
+    segmentation: SegmentationArgs,
+    /// Segment into planes with VSA's L²,¹ metric instead, for comparison; the statistics
+    /// then give each vertex's distance to its region's plane.
+    #[arg(long)]
+    planes: bool,
+    /// Print the statistics as JSON (and nothing else on stdout).
+    #[arg(long)]
+    json: bool,
+    /// Print nothing on stderr but errors (no progress bar, no notes).
+    #[arg(long, short)]
+    quiet: bool,
+    #[command(flatten)]
+    read: ReadArgs,
+}
+
+/// The segmentation's options, shared by `ellip segment` and `ellip encode`.
+#[derive(Debug, Args)]
+pub struct SegmentationArgs {
     /// Number of regions [default: 12].
     #[arg(
         long = "regions",
@@ -71,18 +90,6 @@ pub struct SegmentArgs {
     /// Weight of the volume term in volume mode, δ [default: the paper's].
     #[arg(long, value_name = "W", allow_negative_numbers = true)]
     delta: Option<f64>,
-    /// Segment into planes with VSA's L²,¹ metric instead, for comparison; the statistics
-    /// then give each vertex's distance to its region's plane.
-    #[arg(long)]
-    planes: bool,
-    /// Print the statistics as JSON (and nothing else on stdout).
-    #[arg(long)]
-    json: bool,
-    /// Print nothing on stderr but errors (no progress bar, no notes).
-    #[arg(long, short)]
-    quiet: bool,
-    #[command(flatten)]
-    read: ReadArgs,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -152,7 +159,7 @@ enum ProxyReport {
 }
 
 pub fn run(args: &SegmentArgs) -> Result<(), CliError> {
-    let options = segment_options(args)?;
+    let options = args.segmentation.options(args.planes)?;
     let output_format = match &args.output {
         Some(output) => {
             refuse_overwriting(&args.input, output)?;
@@ -169,7 +176,7 @@ pub fn run(args: &SegmentArgs) -> Result<(), CliError> {
     let mesh = &imported.mesh;
     let diagonal = mesh.bounding_box().map_or(0.0, |b| b.diagonal());
 
-    let bar = progress_bar(args, &options);
+    let bar = progress_bar(args.quiet, &options);
     let mut on_progress = |p: Progress| show_progress(&bar, &p);
     let start = Instant::now();
     let (labels, proxies, summary) = if args.planes {
@@ -257,72 +264,75 @@ pub fn run(args: &SegmentArgs) -> Result<(), CliError> {
     Ok(())
 }
 
-/// The library's options from the command line, each value checked (one-line errors, before
-/// the mesh is read).
-fn segment_options(args: &SegmentArgs) -> Result<SegmentOptions, CliError> {
-    let regions = match (args.regions, args.tolerance) {
-        (Some(_), Some(_)) => {
-            return Err("give either -k/--regions or --tolerance, not both".into())
-        }
-        (Some(k), None) => match usize::try_from(k) {
-            Ok(k) if k >= 1 => RegionCount::Fixed(k),
-            _ => return Err(format!("-k/--regions must be at least 1, not {k}").into()),
-        },
-        (None, Some(t)) if t.is_finite() && t > 0.0 => RegionCount::Tolerance(t),
-        (None, Some(t)) => {
-            return Err(format!(
-                "--tolerance must be a positive fraction of the bounding-box diagonal, not {t}"
-            )
-            .into())
-        }
-        (None, None) => SegmentOptions::default().regions,
-    };
-    let threads = match args.threads {
-        None => None,
-        Some(n) => match usize::try_from(n) {
-            Ok(n) if (1..=MAX_THREADS).contains(&n) => Some(n),
-            _ => {
-                return Err(
-                    format!("--threads must be between 1 and {MAX_THREADS}, not {n}").into(),
+impl SegmentationArgs {
+    /// The library's options from the command line, each value checked (one-line errors, before
+    /// the mesh is read). `planes` says whether the plane metric will be used.
+    pub fn options(&self, planes: bool) -> Result<SegmentOptions, CliError> {
+        let args = self;
+        let regions = match (args.regions, args.tolerance) {
+            (Some(_), Some(_)) => {
+                return Err("give either -k/--regions or --tolerance, not both".into())
+            }
+            (Some(k), None) => match usize::try_from(k) {
+                Ok(k) if k >= 1 => RegionCount::Fixed(k),
+                _ => return Err(format!("-k/--regions must be at least 1, not {k}").into()),
+            },
+            (None, Some(t)) if t.is_finite() && t > 0.0 => RegionCount::Tolerance(t),
+            (None, Some(t)) => {
+                return Err(format!(
+                    "--tolerance must be a positive fraction of the bounding-box diagonal, not {t}"
                 )
+                .into())
             }
-        },
-    };
-    let weight = |name: &str, w: Option<f64>| -> Result<Option<f64>, CliError> {
-        match w {
-            Some(w) if !(w.is_finite() && w >= 0.0) => {
-                Err(format!("--{name} must be a finite weight >= 0, not {w}").into())
+            (None, None) => SegmentOptions::default().regions,
+        };
+        let threads = match args.threads {
+            None => None,
+            Some(n) => match usize::try_from(n) {
+                Ok(n) if (1..=MAX_THREADS).contains(&n) => Some(n),
+                _ => {
+                    return Err(
+                        format!("--threads must be between 1 and {MAX_THREADS}, not {n}").into(),
+                    )
+                }
+            },
+        };
+        let weight = |name: &str, w: Option<f64>| -> Result<Option<f64>, CliError> {
+            match w {
+                Some(w) if !(w.is_finite() && w >= 0.0) => {
+                    Err(format!("--{name} must be a finite weight >= 0, not {w}").into())
+                }
+                Some(_) if planes => Err(format!(
+                    "--{name} weighs the ellipsoid metric; it does not apply to --planes"
+                )
+                .into()),
+                w => Ok(w),
             }
-            Some(_) if args.planes => Err(format!(
-                "--{name} weighs the ellipsoid metric; it does not apply to --planes"
-            )
-            .into()),
-            w => Ok(w),
+        };
+        let weights = WeightOverrides {
+            alpha: weight("alpha", args.alpha)?,
+            beta: weight("beta", args.beta)?,
+            gamma: weight("gamma", args.gamma)?,
+            delta: weight("delta", args.delta)?,
+        };
+        if planes && (args.mode != ModeArg::Surface || args.no_negative) {
+            return Err(
+                "--mode and --no-negative choose ellipsoids; they do not apply to --planes".into(),
+            );
         }
-    };
-    let weights = WeightOverrides {
-        alpha: weight("alpha", args.alpha)?,
-        beta: weight("beta", args.beta)?,
-        gamma: weight("gamma", args.gamma)?,
-        delta: weight("delta", args.delta)?,
-    };
-    if args.planes && (args.mode != ModeArg::Surface || args.no_negative) {
-        return Err(
-            "--mode and --no-negative choose ellipsoids; they do not apply to --planes".into(),
-        );
+        Ok(SegmentOptions {
+            regions,
+            max_iterations: args.iterations,
+            weights,
+            mode: match args.mode {
+                ModeArg::Surface => Mode::Surface,
+                ModeArg::Volume => Mode::Volume,
+            },
+            allow_negative: !args.no_negative,
+            threads,
+            ..SegmentOptions::default()
+        })
     }
-    Ok(SegmentOptions {
-        regions,
-        max_iterations: args.iterations,
-        weights,
-        mode: match args.mode {
-            ModeArg::Surface => Mode::Surface,
-            ModeArg::Volume => Mode::Volume,
-        },
-        allow_negative: !args.no_negative,
-        threads,
-        ..SegmentOptions::default()
-    })
 }
 
 /// The output's format, refusing the ones ellip reads but does not write.
@@ -338,8 +348,8 @@ fn output_format(output: &Path) -> Result<MeshFormat, CliError> {
 }
 
 /// A progress bar on stderr, hidden when stderr is not a terminal or with `--quiet`.
-fn progress_bar(args: &SegmentArgs, options: &SegmentOptions) -> ProgressBar {
-    if args.quiet || !std::io::stderr().is_terminal() {
+pub fn progress_bar(quiet: bool, options: &SegmentOptions) -> ProgressBar {
+    if quiet || !std::io::stderr().is_terminal() {
         return ProgressBar::hidden();
     }
     let bar = ProgressBar::with_draw_target(
@@ -357,7 +367,8 @@ fn progress_bar(args: &SegmentArgs, options: &SegmentOptions) -> ProgressBar {
     bar
 }
 
-fn show_progress(bar: &ProgressBar, p: &Progress) {
+/// Shows one report of the loop on the bar.
+pub fn show_progress(bar: &ProgressBar, p: &Progress) {
     bar.set_position(p.iteration as u64);
     if p.iteration == 0 {
         bar.set_message(format!("seeding: {} regions", p.regions));

@@ -327,3 +327,9 @@ fn decode_with_details(
         },
     ))
 }
+
+/// Writes `.ellip` bytes to `path` atomically (a temporary file in the same folder, then a
+/// rename), so that a failed write never leaves a partial file.
+pub fn write_file(path: &std::path::Path, bytes: &[u8]) -> std::io::Result<()> {
+    crate::atomic::write_atomic(path, |w| w.write_all(bytes))
+}
