@@ -522,30 +522,6 @@ mod tests {
         );
     }
 
-    /// Reads the `v` and `f` lines of the shared test meshes (the real importer lives in
-    /// `crate::import`; this keeps the test independent of it).
-    fn read_simple_obj(text: &str) -> Mesh {
-        let mut positions = Vec::new();
-        let mut faces = Vec::new();
-        for line in text.lines() {
-            let mut words = line.split_whitespace();
-            match words.next() {
-                Some("v") => {
-                    let xyz: Vec<f64> = words.map(|w| w.parse().unwrap()).collect();
-                    positions.push(DVec3::new(xyz[0], xyz[1], xyz[2]));
-                }
-                Some("f") => {
-                    let ijk: Vec<u32> = words
-                        .map(|w| w.split('/').next().unwrap().parse::<u32>().unwrap() - 1)
-                        .collect();
-                    faces.push([ijk[0], ijk[1], ijk[2]]);
-                }
-                _ => {}
-            }
-        }
-        Mesh::new(positions, faces).unwrap()
-    }
-
     #[test]
     fn real_meshes_give_finite_curvature() {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes");
@@ -559,7 +535,9 @@ mod tests {
             .collect();
         paths.sort();
         for path in paths {
-            let m = read_simple_obj(&std::fs::read_to_string(&path).unwrap());
+            let m = crate::import::read_mesh(&path, &Default::default())
+                .unwrap_or_else(|e| panic!("{e}"))
+                .mesh;
             let h = mean_curvature(&m);
             assert_eq!(h.len(), m.vertex_count());
             assert!(h.iter().all(|x| x.is_finite()), "{}", path.display());
