@@ -2,6 +2,8 @@
 //! real mesh with random connected labellings, hand-made cases (holes, pinches, several
 //! components, open sheets, non-manifold edges), the outer-cycle rule, and smoothing.
 
+mod common;
+
 use ellip::boundary::{
     extract_boundaries, smooth_boundaries, BoundaryGraph, Cycle, Side, SmoothOptions,
 };
@@ -506,15 +508,6 @@ fn extract_and_check(mesh: &Mesh, k: usize, seed: u64, what: &str) -> BoundaryGr
     graph
 }
 
-fn meshes_in(dir: &Path) -> Vec<PathBuf> {
-    let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
-        .map(|d| d.filter_map(|e| e.ok().map(|e| e.path())).collect())
-        .unwrap_or_default();
-    paths.retain(|p| p.extension().is_some_and(|e| e == "obj"));
-    paths.sort();
-    paths
-}
-
 // ---------------------------------------------------------------------------------------
 // Invariants on every fixture and real mesh.
 // ---------------------------------------------------------------------------------------
@@ -522,7 +515,7 @@ fn meshes_in(dir: &Path) -> Vec<PathBuf> {
 #[test]
 fn invariants_hold_on_every_fixture() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/meshes");
-    let paths = meshes_in(&dir);
+    let paths = common::obj_files(&dir);
     assert!(paths.len() >= 10, "fixtures are committed");
     for path in paths {
         let mesh = read_mesh(&path, &ImportOptions::default()).unwrap().mesh;
@@ -537,12 +530,10 @@ fn invariants_hold_on_every_fixture() {
 
 #[test]
 fn invariants_hold_on_every_real_mesh() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes");
-    if !dir.is_dir() {
-        eprintln!("skipped: {} is absent", dir.display());
+    let Some(paths) = common::shared_meshes() else {
         return;
-    }
-    for path in meshes_in(&dir) {
+    };
+    for path in paths {
         let mesh = read_mesh(&path, &ImportOptions::default()).unwrap().mesh;
         let name = path.file_name().unwrap().to_string_lossy().into_owned();
         for (k, seed) in [(2, 7), (8, 7), (32, 7), (2, 8), (8, 8), (32, 8)] {

@@ -3,6 +3,8 @@
 //! independently), partial caps, noise, bowls, flat and degenerate patches, the paper's
 //! semi-cylinder (Figure 3), unit changes, and the shared meshes split into octants.
 
+mod common;
+
 use ellip::ellipsoid::fit::{evaluate_error, FitError, SignChoice, Starts};
 use ellip::ellipsoid::hull::convex_hull_volume;
 use ellip::ellipsoid::metric::{gather_region, FaceWeighting, SurfaceAttributes};
@@ -707,16 +709,9 @@ fn warm_starts_converge_to_the_same_fit() {
 /// fits to a finite ellipsoid. Skips when the meshes are absent.
 #[test]
 fn octants_of_shared_meshes_fit_finitely() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes");
-    let Ok(entries) = std::fs::read_dir(&dir) else {
-        eprintln!("skipped: {} not found", dir.display());
+    let Some(paths) = common::shared_meshes() else {
         return;
     };
-    let mut paths: Vec<_> = entries
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|x| x == "obj"))
-        .collect();
-    paths.sort();
     for path in paths {
         let mesh = ellip::import::read_mesh(&path, &Default::default())
             .unwrap_or_else(|e| panic!("{e}"))

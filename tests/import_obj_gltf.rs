@@ -815,30 +815,6 @@ fn truncated_and_bit_flipped_objs_never_panic() {
     }
 }
 
-// ---------------------------------------------------------------------------------------
-// Real meshes, when the shared folder is present
-
-#[test]
-fn shared_obj_meshes_import() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes");
-    let Ok(entries) = std::fs::read_dir(&dir) else {
-        eprintln!("skipping: {} is absent", dir.display());
-        return;
-    };
-    let mut small: Vec<PathBuf> = entries
-        .filter_map(Result::ok)
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|e| e == "obj"))
-        .filter(|p| std::fs::metadata(p).is_ok_and(|m| m.len() < 600_000))
-        .collect();
-    small.sort();
-    for path in small {
-        let imported =
-            read_mesh(&path, &ImportOptions::default()).unwrap_or_else(|e| panic!("{e}"));
-        assert!(imported.mesh.face_count() > 100, "{}", path.display());
-    }
-}
-
 /// Every value in a JSON tree below the root, as a path of keys and indices.
 fn value_paths(value: &Value, path: &mut Vec<Value>, out: &mut Vec<Vec<Value>>) {
     if !path.is_empty() {

@@ -5,17 +5,7 @@ mod common;
 
 use ellip::export::{write_mesh, MeshData};
 use ellip::import::{read_mesh, ImportOptions};
-use std::path::{Path, PathBuf};
-
-fn shared_meshes() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!("skipped: {} is absent", dir.display());
-        None
-    }
-}
+use ellip::mesh::curvature::mean_curvature;
 
 /// (file, closed, manifold, genus, boundary loops), from `../shared/meshes/README.md`.
 const EXPECTED: &[(&str, bool, bool, Option<u64>, usize)] = &[
@@ -39,7 +29,9 @@ const EXPECTED: &[(&str, bool, bool, Option<u64>, usize)] = &[
 
 #[test]
 fn real_meshes_have_their_documented_topology() {
-    let Some(dir) = shared_meshes() else { return };
+    let Some(dir) = common::shared_dir() else {
+        return;
+    };
     for &(name, closed, manifold, genus, loops) in EXPECTED {
         let path = dir.join(name);
         if !path.exists() {
@@ -71,7 +63,9 @@ fn real_meshes_have_their_documented_topology() {
 
 #[test]
 fn the_inward_horse_is_turned_outward() {
-    let Some(dir) = shared_meshes() else { return };
+    let Some(dir) = common::shared_dir() else {
+        return;
+    };
     let path = dir.join("horse.obj");
     if !path.exists() {
         return;
@@ -93,7 +87,9 @@ fn the_inward_horse_is_turned_outward() {
 
 #[test]
 fn every_real_mesh_converts_to_a_valid_glb() {
-    let Some(dir) = shared_meshes() else { return };
+    let Some(dir) = common::shared_dir() else {
+        return;
+    };
     if !common::validator_ready() {
         return;
     }
@@ -114,4 +110,28 @@ fn every_real_mesh_converts_to_a_valid_glb() {
     let (ok, report) = common::run_validator(&written);
     assert!(ok, "the validator flags a converted mesh:\n{report}");
     std::fs::remove_dir_all(&out).unwrap();
+}
+
+#[test]
+fn every_real_mesh_has_finite_curvature() {
+    let Some(paths) = common::shared_meshes() else {
+        return;
+    };
+    for path in paths {
+        let m = read_mesh(&path, &ImportOptions::default())
+            .unwrap_or_else(|e| panic!("{e}"))
+            .mesh;
+        let h = mean_curvature(&m);
+        assert_eq!(h.len(), m.vertex_count());
+        assert!(h.iter().all(|x| x.is_finite()), "{}", path.display());
+        let edge = m.average_edge_length();
+        let mut scaled: Vec<f64> = h.iter().map(|x| x.abs() * edge).collect();
+        scaled.sort_by(f64::total_cmp);
+        println!(
+            "{}: |H|·edge 99th percentile {:.3}, max {:.3}",
+            path.display(),
+            scaled[scaled.len() * 99 / 100],
+            scaled[scaled.len() - 1]
+        );
+    }
 }

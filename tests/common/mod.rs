@@ -1,6 +1,34 @@
-//! Helpers shared by integration tests.
+//! Helpers shared by integration tests (each test crate uses some of them).
+#![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
+
+/// The `.obj` files in `dir`, sorted (none if it cannot be read).
+pub fn obj_files(dir: &Path) -> Vec<PathBuf> {
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map(|d| d.filter_map(|e| e.ok().map(|e| e.path())).collect())
+        .unwrap_or_default();
+    paths.retain(|p| p.extension().is_some_and(|e| e == "obj"));
+    paths.sort();
+    paths
+}
+
+/// `../shared/meshes`, the real meshes beside the project (never committed into it), or
+/// `None` — saying so — where it is absent.
+pub fn shared_dir() -> Option<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes");
+    if dir.is_dir() {
+        Some(dir)
+    } else {
+        println!("skipped: {} is absent", dir.display());
+        None
+    }
+}
+
+/// The real meshes of [`shared_dir`], sorted.
+pub fn shared_meshes() -> Option<Vec<PathBuf>> {
+    shared_dir().map(|dir| obj_files(&dir))
+}
 use std::process::Command;
 
 /// Whether the Khronos glTF Validator can run here (`node` answers and
