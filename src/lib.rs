@@ -5,6 +5,28 @@
 //! P. D. Simari and K. Singh, *Extraction and remeshing of ellipsoidal representations from
 //! mesh data*, Graphics Interface 2005.
 //!
+//! ```
+//! use ellip::encode::{encode_mesh, EncodeSettings};
+//! use ellip::format::{decode, Limits};
+//! use ellip::import::{read_mesh, ImportOptions};
+//! use ellip::segment::{RegionCount, SegmentOptions};
+//!
+//! // A mesh made of three known ellipsoids, stored as three ellipsoidal regions.
+//! let path = std::path::Path::new("fixtures/meshes/blob1.obj");
+//! let mesh = read_mesh(path, &ImportOptions::default())?.mesh;
+//! let settings = EncodeSettings {
+//!     segment: SegmentOptions { regions: RegionCount::Fixed(3), ..SegmentOptions::default() },
+//!     ..EncodeSettings::default()
+//! };
+//! let encoded = encode_mesh(&mesh, &settings, &mut |_progress| {})?;
+//! assert!(encoded.bytes.len() < 2_000, "{} bytes", encoded.bytes.len());
+//!
+//! // Decoding checks every byte: checksums, limits, and the rules of spec/ELLIP.md.
+//! let representation = decode(&encoded.bytes, &Limits::default())?;
+//! assert_eq!(representation.ellipsoids.len(), 3);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
 //! The crate is organised by pipeline stage; see `spec/architecture.md` for the module
 //! graph and the invariants each stage keeps.
 //!
