@@ -138,6 +138,18 @@ impl<'a> FitInput<'a> {
         self.points.is_empty()
     }
 
+    /// Sample `i` as (weight, point, normal, curvature) when it counts: a positive weight and
+    /// finite values. The one rule for which samples the fit and its error use.
+    fn usable_sample(&self, i: usize) -> Option<(f64, DVec3, DVec3, f64)> {
+        let w = self.weight(i);
+        let (&p, &n, &h) = (
+            self.points.get(i)?,
+            self.normals.get(i)?,
+            self.curvatures.get(i)?,
+        );
+        (w > 0.0 && p.is_finite() && n.is_finite() && h.is_finite()).then_some((w, p, n, h))
+    }
+
     fn weight(&self, i: usize) -> f64 {
         match self.weights {
             None => 1.0,
@@ -289,17 +301,9 @@ pub fn fit_ellipsoid(input: &FitInput<'_>, options: &FitOptions) -> Fit {
 pub fn evaluate_error(input: &FitInput<'_>, options: &FitOptions, e: &Ellipsoid) -> f64 {
     let mut sum = 0.0;
     for i in 0..input.len() {
-        let w = input.weight(i);
-        let (Some(&p), Some(&n), Some(&h)) = (
-            input.points.get(i),
-            input.normals.get(i),
-            input.curvatures.get(i),
-        ) else {
+        let Some((w, p, n, h)) = input.usable_sample(i) else {
             continue;
         };
-        if w == 0.0 || !p.is_finite() || !n.is_finite() || !h.is_finite() {
-            continue;
-        }
         let t = measure_vertex_terms(e, p, n, h);
         sum += w * t.weighted(&options.weights);
     }
@@ -388,15 +392,7 @@ impl Canonical {
         let mut total_w = 0.0;
         let mut centroid = DVec3::ZERO;
         for i in 0..input.len() {
-            let w = input.weight(i);
-            let (Some(&p), Some(&n), Some(&h)) = (
-                input.points.get(i),
-                input.normals.get(i),
-                input.curvatures.get(i),
-            ) else {
-                continue;
-            };
-            if w > 0.0 && p.is_finite() && n.is_finite() && h.is_finite() {
+            if let Some((w, p, _, _)) = input.usable_sample(i) {
                 valid.push(i);
                 total_w += w;
                 centroid += w * p;
