@@ -1098,43 +1098,10 @@ fn residual_gradients(q: DVec3, r: DVec3) -> LocalTerms {
 /// Eigen-decomposition of a symmetric 3×3 matrix by cyclic Jacobi rotations: eigenvalues in
 /// decreasing order and a right-handed rotation whose columns are the eigenvectors.
 fn eigen_symmetric(m: [[f64; 3]; 3]) -> ([f64; 3], DMat3) {
-    let mut a = m;
-    let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-    for _ in 0..50 {
-        let off = a[0][1].abs() + a[0][2].abs() + a[1][2].abs();
-        let scale = a[0][0].abs() + a[1][1].abs() + a[2][2].abs();
-        if off <= 1e-300 || off <= 1e-17 * scale {
-            break;
-        }
-        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
-            if a[p][q].abs() <= 1e-300 {
-                continue;
-            }
-            let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
-            let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
-            let t = if theta == 0.0 { 1.0 } else { t };
-            let c = 1.0 / (t * t + 1.0).sqrt();
-            let sn = t * c;
-            for k in 0..3 {
-                let (akp, akq) = (a[k][p], a[k][q]);
-                a[k][p] = c * akp - sn * akq;
-                a[k][q] = sn * akp + c * akq;
-            }
-            for k in 0..3 {
-                let (apk, aqk) = (a[p][k], a[q][k]);
-                a[p][k] = c * apk - sn * aqk;
-                a[q][k] = sn * apk + c * aqk;
-            }
-            for row in v.iter_mut() {
-                let (vp, vq) = (row[p], row[q]);
-                row[p] = c * vp - sn * vq;
-                row[q] = sn * vp + c * vq;
-            }
-        }
-    }
+    let (diagonal, v) = jacobi_eigen(m);
     let mut order = [0usize, 1, 2];
-    order.sort_by(|&i, &j| a[j][j].total_cmp(&a[i][i]).then(i.cmp(&j)));
-    let values = order.map(|i| a[i][i]);
+    order.sort_by(|&i, &j| diagonal[j].total_cmp(&diagonal[i]).then(i.cmp(&j)));
+    let values = order.map(|i| diagonal[i]);
     let col = |i: usize| DVec3::new(v[0][i], v[1][i], v[2][i]);
     let (x, y) = (col(order[0]).normalize(), col(order[1]).normalize());
     let z = x.cross(y).normalize();
