@@ -42,6 +42,14 @@ impl SplitMix64 {
         ((self.next_u64() as u128 * n as u128) >> 64) as u64
     }
 
+    /// A uniformly distributed unit vector (uniform height z, uniform azimuth: Archimedes).
+    pub fn unit_vector(&mut self) -> glam::DVec3 {
+        let z = self.range_f64(-1.0, 1.0);
+        let phi = self.range_f64(0.0, std::f64::consts::TAU);
+        let s = (1.0 - z * z).max(0.0).sqrt();
+        glam::DVec3::new(s * phi.cos(), s * phi.sin(), z)
+    }
+
     /// A standard normal sample (Box–Muller).
     pub fn normal(&mut self) -> f64 {
         let u1 = 1.0 - self.next_f64(); // (0, 1]
@@ -60,6 +68,19 @@ mod tests {
         let mut r = SplitMix64::new(1234567);
         assert_eq!(r.next_u64(), 6457827717110365317);
         assert_eq!(r.next_u64(), 3203168211198807973);
+    }
+
+    #[test]
+    fn unit_vectors_are_unit_and_cover_the_sphere() {
+        let mut r = SplitMix64::new(3);
+        let mut mean = glam::DVec3::ZERO;
+        for _ in 0..20_000 {
+            let u = r.unit_vector();
+            assert!((u.length() - 1.0).abs() < 1e-12);
+            mean += u / 20_000.0;
+        }
+        // Uniform on the sphere: the mean is near zero (σ ≈ 0.004 per axis).
+        assert!(mean.length() < 0.03, "{mean}");
     }
 
     #[test]

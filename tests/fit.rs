@@ -47,15 +47,6 @@ impl Samples {
     }
 }
 
-fn random_unit(rng: &mut SplitMix64) -> DVec3 {
-    loop {
-        let v = DVec3::new(rng.normal(), rng.normal(), rng.normal());
-        if let Some(u) = v.try_normalize() {
-            return u;
-        }
-    }
-}
-
 /// Random pose, radii in [1, 5]·base (axis ratios up to 1:5).
 fn random_ellipsoid(rng: &mut SplitMix64) -> Ellipsoid {
     let base = rng.range_f64(0.5, 2.0);
@@ -66,7 +57,7 @@ fn random_ellipsoid(rng: &mut SplitMix64) -> Ellipsoid {
             rng.range_f64(-5.0, 5.0),
         ),
         rotation: DQuat::from_axis_angle(
-            random_unit(rng),
+            rng.unit_vector(),
             rng.range_f64(0.0, std::f64::consts::TAU),
         ),
         radii: DVec3::new(
@@ -83,7 +74,7 @@ fn random_ellipsoid(rng: &mut SplitMix64) -> Ellipsoid {
 fn area_uniform(rng: &mut SplitMix64, e: &Ellipsoid) -> DVec3 {
     let r_min = e.radii.min_element();
     loop {
-        let u = random_unit(rng);
+        let u = rng.unit_vector();
         if rng.next_f64() < (u / e.radii).length() * r_min {
             return u;
         }
@@ -93,7 +84,7 @@ fn area_uniform(rng: &mut SplitMix64, e: &Ellipsoid) -> DVec3 {
 /// `n` exact samples covering the fraction `fraction` of the ellipsoid's area: the cap
 /// around a random direction (in unit-sphere coordinates) cut at the matching quantile.
 fn cap_samples(rng: &mut SplitMix64, e: &Ellipsoid, fraction: f64, n: usize) -> Samples {
-    let d = random_unit(rng);
+    let d = rng.unit_vector();
     let mut probe: Vec<f64> = (0..20_000).map(|_| area_uniform(rng, e).dot(d)).collect();
     probe.sort_by(f64::total_cmp);
     let cut = probe[((1.0 - fraction) * probe.len() as f64) as usize];
@@ -567,7 +558,7 @@ fn degenerate_regions_give_finite_ellipsoids() {
         line.push(
             DVec3::new(t, 2.0 * t, -t)
                 + DVec3::new(rng.normal(), rng.normal(), rng.normal()) * 1e-9,
-            random_unit(&mut rng),
+            rng.unit_vector(),
             rng.normal(),
         );
     }

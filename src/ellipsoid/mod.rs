@@ -271,17 +271,8 @@ mod tests {
     use crate::rng::SplitMix64;
     use glam::DMat3;
 
-    fn random_unit(rng: &mut SplitMix64) -> DVec3 {
-        loop {
-            let v = DVec3::new(rng.normal(), rng.normal(), rng.normal());
-            if let Some(u) = v.try_normalize() {
-                return u;
-            }
-        }
-    }
-
     fn random_ellipsoid(rng: &mut SplitMix64) -> Ellipsoid {
-        let axis = random_unit(rng);
+        let axis = rng.unit_vector();
         Ellipsoid {
             center: DVec3::new(
                 rng.range_f64(-3.0, 3.0),
@@ -313,7 +304,7 @@ mod tests {
             let e = random_ellipsoid(&mut rng);
             let a = quadric(&e);
             for _ in 0..20 {
-                let u = random_unit(&mut rng);
+                let u = rng.unit_vector();
                 let p = e.from_unit_sphere(u);
                 let d = p - e.center;
                 assert!((d.dot(a * d) - 1.0).abs() < 1e-12);
@@ -333,7 +324,7 @@ mod tests {
             let e = random_ellipsoid(&mut rng);
             let a = quadric(&e);
             for _ in 0..20 {
-                let p = e.center + random_unit(&mut rng) * rng.range_f64(0.01, 10.0);
+                let p = e.center + rng.unit_vector() * rng.range_f64(0.01, 10.0);
                 let pi = e.project_radially(p);
                 let d = pi - e.center;
                 assert!((d.dot(a * d) - 1.0).abs() < 1e-12);
@@ -358,7 +349,7 @@ mod tests {
             let mut e = random_ellipsoid(&mut rng);
             let a = quadric(&e);
             for _ in 0..20 {
-                let p = e.from_unit_sphere(random_unit(&mut rng));
+                let p = e.from_unit_sphere(rng.unit_vector());
                 let grad = (a * (p - e.center)).normalize();
                 assert!((e.outward_normal(p) - grad).length() < 1e-12);
                 assert!((e.normal(p) - grad).length() < 1e-12);
@@ -461,8 +452,8 @@ mod tests {
         let mut hits_seen = 0;
         for _ in 0..100 {
             let e = random_ellipsoid(&mut rng);
-            let o = e.center + random_unit(&mut rng) * rng.range_f64(0.0, 6.0);
-            let d = random_unit(&mut rng) * rng.range_f64(0.5, 2.0);
+            let o = e.center + rng.unit_vector() * rng.range_f64(0.0, 6.0);
+            let d = rng.unit_vector() * rng.range_f64(0.5, 2.0);
             let marched = march(&e, o, d, 20.0);
             match e.intersect_ray(o, d) {
                 Some([t0, t1]) => {

@@ -191,7 +191,7 @@ pub fn random_ellipsoids(seed: u64, count: usize) -> Vec<EllipsoidSpec> {
             let Some(parent) = out.get(parent_index) else {
                 continue;
             };
-            let direction = random_unit(&mut rng);
+            let direction = rng.unit_vector();
             let (surface_point, normal) = surface_point_and_normal(parent, direction);
             let depth = rng.range_f64(0.3, 0.7);
             let candidate = EllipsoidSpec {
@@ -872,14 +872,6 @@ fn random_rotation(rng: &mut SplitMix64) -> DQuat {
     let u3 = rng.range_f64(0.0, std::f64::consts::TAU);
     let (s, t) = ((1.0 - u1).sqrt(), u1.sqrt());
     DQuat::from_xyzw(s * u2.sin(), s * u2.cos(), t * u3.sin(), t * u3.cos()).normalize()
-}
-
-/// A uniformly random unit vector.
-fn random_unit(rng: &mut SplitMix64) -> DVec3 {
-    let z = rng.range_f64(-1.0, 1.0);
-    let phi = rng.range_f64(0.0, std::f64::consts::TAU);
-    let s = (1.0 - z * z).max(0.0).sqrt();
-    DVec3::new(s * phi.cos(), s * phi.sin(), z)
 }
 
 /// The point of `e`'s surface in local direction `u` from its centre (after scaling), and the
