@@ -53,6 +53,7 @@ pub mod format;
 pub mod import;
 pub mod mesh;
 pub mod representation;
+pub mod remesh;
 pub mod rng;
 pub mod segment;
 pub mod synth;

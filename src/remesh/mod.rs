@@ -1,0 +1,116 @@
+//! Remeshing: a [`Representation`] back to a triangle mesh (Simari & Singh 2005, section 5).
+//!
+//! One stage per module:
+//! - [`chart`]: each region's map to the plane (section 5.1): the ellipsoid to the unit
+//!   sphere, a rotation that keeps the north pole away from the region, stereographic
+//!   projection; point-in-region against the projected outer cycle and holes;
+//! - [`query`]: the analytic ray query on a whole representation (first hit → point, normal,
+//!   region), the use the paper motivates;
+//! - [`refine`]: boundary arcs refined on the intersection curve of the two ellipsoids they
+//!   separate, one set of points shared by both regions;
+//! - [`triangulate`]: one region's constrained Delaunay triangulation in its chart (spade),
+//!   by iterative vertex addition (section 5.3, the default) or from a parametric grid
+//!   (section 5.2);
+//! - [`assemble`]: the regions joined into one watertight mesh with analytic normals.
+//!
+//! [`remesh`] runs them all.
+
+pub mod assemble;
+pub mod chart;
+pub mod query;
+pub mod refine;
+pub mod triangulate;
+
+use crate::mesh::{Mesh, MeshError};
+use crate::representation::{InvalidRepresentation, Representation};
+use glam::DVec3;
+
+/// How a region's interior is tessellated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Scheme {
+    /// Iterative vertex addition (section 5.3): insert the face centre farthest from the
+    /// ellipsoid until the budget or the tolerance is reached. The default.
+    #[default]
+    Adaptive,
+    /// A regular azimuth/elevation grid on the unit sphere, the points inside the region
+    /// kept (section 5.2).
+    Parametric,
+}
+
+/// Vertex budget used when neither the options nor the file suggest one.
+pub const DEFAULT_VERTICES: usize = 20_000;
+
+/// Largest vertex budget a decode may use unless the caller raises it: a hostile file's
+/// suggested count must not exhaust memory.
+pub const MAX_VERTICES: usize = 20_000_000;
+
+/// What the remesher is asked for. Every field has a default ([`Default`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RemeshOptions {
+    /// Total output vertex budget, shared among regions by their error; `None`: the file's
+    /// suggestion, else [`DEFAULT_VERTICES`]. Capped at `max_vertices`.
+    pub vertices: Option<usize>,
+    /// Stop refining once every region is within this radial distance of its ellipsoid, as a
+    /// fraction of the bounding-box diagonal; `None`: only the budget stops.
+    pub tolerance: Option<f64>,
+    /// Adaptive (default) or parametric.
+    pub scheme: Scheme,
+    /// Upper bound on the budget (default [`MAX_VERTICES`]).
+    pub max_vertices: usize,
+}
+
+impl Default for RemeshOptions {
+    fn default() -> Self {
+        RemeshOptions {
+            vertices: None,
+            tolerance: None,
+            scheme: Scheme::Adaptive,
+            max_vertices: MAX_VERTICES,
+        }
+    }
+}
+
+/// A remeshed representation.
+#[derive(Debug, Clone)]
+pub struct Remeshed {
+    /// The triangle mesh; closed and manifold when every arc separates two regions.
+    pub mesh: Mesh,
+    /// Per vertex, the analytic unit normal (averaged across the regions a boundary vertex
+    /// touches), oriented like the faces.
+    pub normals: Vec<DVec3>,
+    /// Per face, the region it belongs to.
+    pub face_regions: Vec<u32>,
+}
+
+/// Why a representation could not be remeshed.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum RemeshError {
+    /// The representation breaks a rule of the format.
+    #[error(transparent)]
+    Invalid(#[from] InvalidRepresentation),
+    /// A region's boundary cannot be mapped or triangulated (e.g. its cycles cross).
+    #[error("region {region}: {what}")]
+    Region {
+        /// The region.
+        region: u32,
+        /// What is wrong.
+        what: &'static str,
+    },
+    /// An option is out of range.
+    #[error("invalid option {what}: {value}")]
+    InvalidOption {
+        /// The option.
+        what: &'static str,
+        /// Its value, as text.
+        value: String,
+    },
+    /// The assembled mesh was refused (a bug: reported, never written).
+    #[error("internal error, the assembled mesh is invalid: {0}")]
+    Mesh(#[from] MeshError),
+}
+
+/// Remeshes a representation (validated first).
+pub fn remesh(rep: &Representation, options: &RemeshOptions) -> Result<Remeshed, RemeshError> {
+    assemble::assemble(rep, options)
+}
