@@ -42,6 +42,7 @@
 //! | encode | [`encode`] | the whole encoder: mesh → representation → `.ellip` bytes |
 //! | represent | [`representation`] | ellipsoids, boundary-point pool, shared arcs, cycles; arc simplification |
 //! | store | [`format`](mod@format) | the `.ellip` file: versioned encoder, hardened decoder (`spec/ELLIP.md`) |
+//! | remesh | [`remesh`] | regions back to a watertight triangle mesh: charts, spade CDT, ray query |
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
