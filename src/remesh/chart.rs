@@ -15,6 +15,25 @@ pub struct RegionChart {
 }
 
 impl RegionChart {
+    /// The chart of region `region` on `ellipsoid`, bounded by `loops`: closed polylines of
+    /// boundary points (the first point not repeated at the end), each with the region on its
+    /// left when seen with the mesh's outward normal up (spec §6.5). No loops: the whole
+    /// ellipsoid.
+    ///
+    /// The pole is chosen away from the region (section 5.1). This first version takes the
+    /// antipode of the loops' mean direction.
+    pub fn new(
+        region: u32,
+        ellipsoid: &Ellipsoid,
+        loops: &[Vec<DVec3>],
+    ) -> Result<RegionChart, super::RemeshError> {
+        let _ = region;
+        let probe = RegionChart::with_pole(ellipsoid, DVec3::Z);
+        let sum: DVec3 = loops.iter().flatten().map(|&p| probe.to_sphere(p)).sum();
+        let pole = (-sum).try_normalize().unwrap_or(DVec3::Z);
+        Ok(RegionChart::with_pole(ellipsoid, pole))
+    }
+
     /// The chart whose projection centre (the point mapped to infinity) is `pole`, a
     /// direction on the unit sphere of `ellipsoid`.
     pub fn with_pole(ellipsoid: &Ellipsoid, pole: DVec3) -> RegionChart {
