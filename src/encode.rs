@@ -22,11 +22,15 @@ pub struct EncodeSettings {
     pub segment: SegmentOptions,
     /// Boundary smoothing (default: [`SmoothOptions::default`]).
     pub smooth: SmoothOptions,
-    /// Arc simplification tolerance as a fraction of the bounding-box diagonal (default
-    /// [`DEFAULT_RELATIVE_TOLERANCE`], 10⁻³); 0 keeps every boundary point.
+    /// Boundary tolerance as a fraction of the bounding-box diagonal (default
+    /// [`DEFAULT_RELATIVE_TOLERANCE`], 10⁻³): no stored boundary point is farther than this
+    /// from the boundary it stands for, simplification and quantisation together. 0 keeps
+    /// every boundary point (then only the grid moves them).
     pub simplify_tolerance: f64,
-    /// Bits per axis of the boundary-point grid (default [`format::DEFAULT_BITS`]).
-    pub bits: u8,
+    /// Bits per axis of the boundary-point grid; `None` (the default): the one of
+    /// [`AUTO_BITS`] that gives the smallest file within the boundary tolerance
+    /// ([`format::DEFAULT_BITS`] when the tolerance is 0).
+    pub bits: Option<u8>,
 }
 
 impl Default for EncodeSettings {
@@ -35,7 +39,7 @@ impl Default for EncodeSettings {
             segment: SegmentOptions::default(),
             smooth: SmoothOptions::default(),
             simplify_tolerance: DEFAULT_RELATIVE_TOLERANCE,
-            bits: format::DEFAULT_BITS,
+            bits: None,
         }
     }
 }
@@ -53,6 +57,8 @@ pub struct Encoded {
     pub boundary_points: usize,
     /// Boundary points simplification removed.
     pub removed_points: usize,
+    /// Bits per axis of the point grid used.
+    pub bits: u8,
 }
 
 /// Why a mesh could not be encoded.
@@ -104,33 +110,99 @@ pub fn encode_mesh(
         positions[v as usize] = p;
     }
     let diagonal = mesh.bounding_box().map_or(0.0, |b| b.diagonal());
-    let absolute_tolerance = tolerance * diagonal;
     let metadata = Metadata {
         source_vertices: mesh.vertex_count() as u64,
         source_faces: mesh.face_count() as u64,
-        simplify_tolerance: (absolute_tolerance > 0.0).then_some(absolute_tolerance),
+        simplify_tolerance: None,
         measured_error: None,
         suggested_vertices: Some(mesh.vertex_count() as u64),
     };
-    let mut representation =
+    let representation =
         Representation::from_boundary(segmentation.proxies.clone(), &positions, &graph, metadata)?;
     let boundary_points = representation.points.len();
+    let absolute_tolerance = tolerance * diagonal;
+    let stored = match settings.bits {
+        Some(bits) => store(&representation, absolute_tolerance, bits)?,
+        None if absolute_tolerance == 0.0 => {
+            store(&representation, absolute_tolerance, format::DEFAULT_BITS)?
+        }
+        // The grid and the simplification share the boundary tolerance: try each split and
+        // keep the smallest file (ties: the finer grid).
+        None => {
+            let mut best: Option<Stored> = None;
+            for bits in AUTO_BITS {
+                let grid_error = format::Grid::around(&representation.points, bits).error_bound();
+                if grid_error >= absolute_tolerance {
+                    continue;
+                }
+                let candidate = store(&representation, absolute_tolerance, bits)?;
+                if best
+                    .as_ref()
+                    .is_none_or(|b| candidate.bytes.len() <= b.bytes.len())
+                {
+                    best = Some(candidate);
+                }
+            }
+            match best {
+                Some(b) => b,
+                None => store(&representation, absolute_tolerance, *AUTO_BITS.end())?,
+            }
+        }
+    };
+    Ok(Encoded {
+        bytes: stored.bytes,
+        representation: stored.representation,
+        segmentation,
+        boundary_points,
+        removed_points: stored.removed_points,
+        bits: stored.bits,
+    })
+}
+
+/// Grid resolutions the automatic choice tries.
+pub const AUTO_BITS: std::ops::RangeInclusive<u8> = 8..=16;
+
+/// One way of storing a representation.
+struct Stored {
+    bytes: Vec<u8>,
+    representation: Representation,
+    removed_points: usize,
+    bits: u8,
+}
+
+/// Simplifies the arcs with what the grid of `bits` leaves of the boundary tolerance
+/// (`absolute_tolerance`, model units; 0: no simplification) and writes the file.
+fn store(
+    representation: &Representation,
+    absolute_tolerance: f64,
+    bits: u8,
+) -> Result<Stored, EncodeMeshError> {
+    let mut representation = representation.clone();
+    // The boundary tolerance bounds a stored point's whole error: Douglas–Peucker gets what
+    // the grid's rounding leaves (the grid over all points is at least as coarse as the one
+    // over the points simplification keeps).
+    let grid_error = format::Grid::around(&representation.points, bits).error_bound();
+    let simplify_tolerance = absolute_tolerance - grid_error;
+    if absolute_tolerance > 0.0 && simplify_tolerance <= 0.0 {
+        return Err(EncodeMeshError::InvalidOption {
+            what: "bits",
+            value: format!(
+                "{bits}: the grid alone moves points by up to {grid_error:.3e}, more than the \
+                 boundary tolerance {absolute_tolerance:.3e}; use more bits or a larger tolerance"
+            ),
+        });
+    }
     let removed_points = if absolute_tolerance > 0.0 {
-        representation.simplify_arcs(absolute_tolerance)
+        representation.metadata.simplify_tolerance = Some(simplify_tolerance);
+        representation.simplify_arcs(simplify_tolerance)
     } else {
         0
     };
-    let bytes = format::encode(
-        &representation,
-        &EncodeOptions {
-            bits: settings.bits,
-        },
-    )?;
-    Ok(Encoded {
+    let bytes = format::encode(&representation, &EncodeOptions { bits })?;
+    Ok(Stored {
         bytes,
         representation,
-        segmentation,
-        boundary_points,
         removed_points,
+        bits,
     })
 }

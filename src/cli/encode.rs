@@ -4,7 +4,7 @@ use super::segment::{progress_bar, show_progress, SegmentationArgs};
 use super::{refuse_overwriting, shown, CliError, ReadArgs};
 use clap::Args;
 use ellip::encode::{encode_mesh, EncodeSettings};
-use ellip::format::{inspect, simplify::DEFAULT_RELATIVE_TOLERANCE, Limits, DEFAULT_BITS};
+use ellip::format::{inspect, simplify::DEFAULT_RELATIVE_TOLERANCE, Limits};
 use ellip::import::read_mesh;
 use serde::Serialize;
 use std::io::Write;
@@ -20,11 +20,13 @@ pub struct EncodeArgs {
     #[command(flatten)]
     segmentation: SegmentationArgs,
     /// Bits per axis of the boundary-point grid, 1 to 24; the worst-case point error is half
-    /// a grid step, diagonal / (2·(2^B − 1)).
-    #[arg(long, value_name = "B", default_value_t = DEFAULT_BITS)]
-    bits: u8,
-    /// Simplify boundary arcs to this tolerance, as a fraction of the bounding-box diagonal
-    /// (0 keeps every boundary point).
+    /// a grid step, diagonal / (2·(2^B − 1)). Default: the resolution (8 to 16 bits) that
+    /// gives the smallest file within the boundary tolerance.
+    #[arg(long, value_name = "B")]
+    bits: Option<u8>,
+    /// Boundary tolerance, as a fraction of the bounding-box diagonal: no stored boundary
+    /// point is farther than this from the boundary it stands for (simplification and grid
+    /// rounding together). 0 keeps every boundary point.
     #[arg(long, value_name = "FRACTION", default_value_t = DEFAULT_RELATIVE_TOLERANCE)]
     simplify: f64,
     /// Print the report as JSON on stdout (not with `-o -`).
@@ -114,7 +116,7 @@ pub fn run(args: &EncodeArgs) -> Result<(), CliError> {
         arcs: summary.arcs,
         boundary_points: encoded.boundary_points,
         points_after_simplification: summary.points,
-        bits: args.bits,
+        bits: encoded.bits,
         bytes,
         input_bytes,
         raw_bytes,

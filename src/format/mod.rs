@@ -16,6 +16,7 @@
 //! Layering: [`container`] (header, framing, CRC, DEFLATE) → `sections` (payload schemas) →
 //! `wire` (the only user of bincode) and [`quantise`] (the point grid).
 
+mod bits;
 pub mod consts;
 pub mod container;
 mod error;
@@ -84,6 +85,9 @@ pub struct FileSummary {
     pub sections: Vec<SectionSummary>,
     /// Regions (ellipsoids).
     pub regions: usize,
+    /// Ellipsoids stored quantised (spec §6.2 variant 2), moved by at most
+    /// [`FileSummary::error_bound`].
+    pub quantised_ellipsoids: usize,
     /// Ellipsoids stored in binary32 (the rest are binary64).
     pub f32_ellipsoids: usize,
     /// Arcs.
@@ -144,8 +148,7 @@ pub fn encode(rep: &Representation, options: &EncodeOptions) -> Result<Vec<u8>, 
     let canon = sections::canonicalise(rep);
     let arcs = sections::write_arcs(rep, &canon)?;
     let (points, grid) = sections::write_points(rep, &canon, options.bits)?;
-    let tolerance = ellipsoid_tolerance(rep, &grid);
-    let (ellipsoids, _) = sections::write_ellipsoids(&rep.ellipsoids, tolerance)?;
+    let ellipsoids = sections::write_ellipsoids(&rep.ellipsoids, grid.error_bound())?;
     let sections = [
         RawSection::compressed(TAG_META, false, &sections::write_meta(&rep.metadata)?)?,
         RawSection::compressed(TAG_ELPS, true, &ellipsoids)?,
@@ -154,22 +157,6 @@ pub fn encode(rep: &Representation, options: &EncodeOptions) -> Result<Vec<u8>, 
         RawSection::compressed(TAG_CYCL, true, &sections::write_cycles(rep)?)?,
     ];
     write_container(MAJOR, MINOR, 0, &sections)
-}
-
-/// The surface displacement the binary32 ellipsoid encoding may cause (spec §11): the
-/// reference length L (the point box's diagonal, or with no points the largest ellipsoid
-/// diameter) times 2^−(bits+3).
-fn ellipsoid_tolerance(rep: &Representation, grid: &Grid) -> f64 {
-    let diagonal = (grid.max - grid.min).length();
-    let reference = if rep.points.is_empty() || diagonal == 0.0 {
-        rep.ellipsoids
-            .iter()
-            .map(|e| 2.0 * e.radii.max_element())
-            .fold(0.0, f64::max)
-    } else {
-        diagonal
-    };
-    reference * 2f64.powi(-(i32::from(grid.bits) + 3))
 }
 
 /// Decodes a file (spec §3–8) within `limits`.
@@ -186,7 +173,8 @@ pub fn inspect(bytes: &[u8], limits: &Limits) -> Result<FileSummary, DecodeError
         total_bytes: bytes.len() as u64,
         sections: details.sections,
         regions: rep.ellipsoids.len(),
-        f32_ellipsoids: details.f32_ellipsoids,
+        quantised_ellipsoids: details.precision.quantised,
+        f32_ellipsoids: details.precision.binary32,
         arcs: rep.arcs.len(),
         points: rep.points.len(),
         arc_points: rep.arcs.iter().map(|a| a.points.len()).sum(),
@@ -203,7 +191,7 @@ struct Details {
     minor: u16,
     sections: Vec<SectionSummary>,
     grid: Grid,
-    f32_ellipsoids: usize,
+    precision: sections::Precision,
 }
 
 const KNOWN_TAGS: [Tag; 5] = [TAG_META, TAG_ELPS, TAG_ARCS, TAG_PNTS, TAG_CYCL];
@@ -283,7 +271,7 @@ fn decode_with_details(
     };
     let raw = required(payload(TAG_ELPS)?, TAG_ELPS)?;
     let mut r = Reader::new(TAG_ELPS, &raw);
-    let (ellipsoids, f32_ellipsoids) = sections::read_ellipsoids(&mut r, limits)?;
+    let (ellipsoids, precision) = sections::read_ellipsoids(&mut r, limits)?;
     finish(r)?;
     drop(raw);
 
@@ -323,7 +311,7 @@ fn decode_with_details(
             minor: container.minor,
             sections: summaries,
             grid,
-            f32_ellipsoids,
+            precision,
         },
     ))
 }

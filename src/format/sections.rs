@@ -1,10 +1,11 @@
 //! Section payloads (spec §6): what each section holds and how its items follow each other.
 //! Every item goes through [`super::wire`], so the byte layout is bincode's, as the spec says.
 
+use super::bits::{zigzag, BitReader, BitWriter, RiceContext};
 use super::consts::*;
 use super::error::{DecodeError, EncodeError};
 use super::limits::Limits;
-use super::quantise::Grid;
+use super::quantise::{Grid, QuantisedEllipsoid};
 use super::wire::{Reader, Writer};
 use crate::ellipsoid::{Ellipsoid, Sign};
 use crate::representation::{Arc, ArcRef, Cycle, Metadata, Part, Representation, Side};
@@ -61,7 +62,8 @@ pub(crate) fn read_meta(r: &mut Reader<'_>) -> Result<Metadata, DecodeError> {
 // ---------------------------------------------------------------------------------------
 // ELPS (spec §6.2)
 
-/// One ellipsoid: variant 0 in binary32, variant 1 in binary64. Rotation is (x, y, z, w).
+/// One ellipsoid: variant 0 in binary32, variant 1 in binary64, variant 2 quantised (a bit
+/// stream, [`QuantisedEllipsoid`]). Rotation is (x, y, z, w).
 #[derive(Serialize, Deserialize)]
 enum WireEllipsoid {
     F32 {
@@ -76,17 +78,33 @@ enum WireEllipsoid {
         radii: [f64; 3],
         negative: bool,
     },
+    Quantised(Vec<u8>),
 }
 
-/// Smallest encoded ellipsoid: variant 1 + 10 × 4 + 1 bytes.
-const MIN_ELLIPSOID_BYTES: u64 = 42;
+/// Smallest encoded ellipsoid: variant 2, a length and the 5 bytes of the shortest stream
+/// (1 + 8 + 3·5 + 3 + 2 + 5 + 5 bits).
+const MIN_ELLIPSOID_BYTES: u64 = 7;
+
+/// How many ellipsoids a section stored in each form.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub(crate) struct Precision {
+    pub(crate) quantised: usize,
+    pub(crate) binary32: usize,
+    pub(crate) binary64: usize,
+}
 
 /// The encoder normalises a rotation whose |‖q‖² − 1| exceeds this (spec §11).
 const ENCODER_RENORMALISE: f64 = 1e-6;
 
-/// Chooses binary32 when it is exact, or when the worst-case surface displacement its
-/// rounding causes, 2⁻²⁴·(‖c‖ + 6·r_max), is within `tolerance` (spec §11, item 4).
+/// Chooses the quantised form when its bound is within `tolerance`; else binary32 when it is
+/// exact, or when the worst-case surface displacement its rounding causes,
+/// 2⁻²⁴·(‖c‖ + 6·r_max), is within `tolerance`; else binary64 (spec §11, item 4).
 fn to_wire(e: &Ellipsoid, tolerance: f64) -> WireEllipsoid {
+    if let Some(q) = QuantisedEllipsoid::from_ellipsoid(e, tolerance) {
+        let mut w = BitWriter::new();
+        q.write(&mut w);
+        return WireEllipsoid::Quantised(w.finish());
+    }
     let q = if (e.rotation.length_squared() - 1.0).abs() > ENCODER_RENORMALISE {
         e.rotation.normalize()
     } else {
@@ -122,42 +140,54 @@ fn to_wire(e: &Ellipsoid, tolerance: f64) -> WireEllipsoid {
     }
 }
 
-/// The ELPS payload; also returns how many ellipsoids went in binary32.
+/// The ELPS payload, ellipsoids moved by at most `tolerance` (0: exact).
 pub(crate) fn write_ellipsoids(
     ellipsoids: &[Ellipsoid],
     tolerance: f64,
-) -> Result<(Vec<u8>, usize), EncodeError> {
+) -> Result<Vec<u8>, EncodeError> {
     let mut w = Writer::new(TAG_ELPS);
     w.put_count(ellipsoids.len())?;
-    let mut singles = 0;
     for e in ellipsoids {
-        let wire = to_wire(e, tolerance);
-        if matches!(wire, WireEllipsoid::F32 { .. }) {
-            singles += 1;
-        }
-        w.put(&wire)?;
+        w.put(&to_wire(e, tolerance))?;
     }
-    Ok((w.into_bytes(), singles))
+    Ok(w.into_bytes())
 }
 
-/// The ellipsoids, and how many were stored in binary32.
+/// The ellipsoids, and how many were stored in each form.
 pub(crate) fn read_ellipsoids(
     r: &mut Reader<'_>,
     limits: &Limits,
-) -> Result<(Vec<Ellipsoid>, usize), DecodeError> {
+) -> Result<(Vec<Ellipsoid>, Precision), DecodeError> {
     let max = limits.max_regions.min(MAX_REGIONS);
     let n = r.count("regions", max, MIN_ELLIPSOID_BYTES)?;
     let mut out = Vec::with_capacity(n);
-    let mut singles = 0;
+    let mut precision = Precision::default();
     for _ in 0..n {
         let (center, rotation, radii, negative) = match r.get("E0: malformed ellipsoid")? {
+            WireEllipsoid::Quantised(stream) => {
+                precision.quantised += 1;
+                let mut bits = BitReader::new(&stream);
+                let q = QuantisedEllipsoid::read(&mut bits)
+                    .ok_or_else(|| r.error("E0: malformed ellipsoid"))?;
+                if !bits.is_at_padded_end() {
+                    return Err(r.error("E5: bits after the quantised ellipsoid"));
+                }
+                if q.radii.contains(&0) {
+                    return Err(r.error("E2: radius not positive"));
+                }
+                let e = q
+                    .to_ellipsoid()
+                    .ok_or_else(|| r.error("E4: quantised rotation components exceed 1"))?;
+                out.push(e);
+                continue;
+            }
             WireEllipsoid::F32 {
                 center,
                 rotation,
                 radii,
                 negative,
             } => {
-                singles += 1;
+                precision.binary32 += 1;
                 (
                     center.map(f64::from),
                     rotation.map(f64::from),
@@ -170,7 +200,10 @@ pub(crate) fn read_ellipsoids(
                 rotation,
                 radii,
                 negative,
-            } => (center, rotation, radii, negative),
+            } => {
+                precision.binary64 += 1;
+                (center, rotation, radii, negative)
+            }
         };
         out.push(Ellipsoid {
             center: DVec3::from_array(center),
@@ -183,7 +216,7 @@ pub(crate) fn read_ellipsoids(
             },
         });
     }
-    Ok((out, singles))
+    Ok((out, precision))
 }
 
 // ---------------------------------------------------------------------------------------
@@ -232,14 +265,20 @@ pub(crate) fn canonicalise(rep: &Representation) -> Canonical {
     }
 }
 
-/// Predicted grid indices of canonical point `i` (spec §6.4): with k its predecessor and j
-/// k's predecessor, 2·q[k] − q[j] (the chain continued straight on); with no j, q[k]; with
-/// no k, the previous point's q[i − 1]; for the first point, zero. In i64: a prediction may
-/// leave the grid, the predicted point may not.
-fn prediction(i: usize, predecessor: &[Option<u32>], q: &[[u32; 3]]) -> [i64; 3] {
+/// Predicted grid indices of canonical point `i` (spec §6.4) and the kind of prediction,
+/// which selects the Rice contexts: with k its predecessor and j k's predecessor,
+/// 2·q[k] − q[j] (the chain continued straight on, kind 0); with no j, q[k] (kind 1); with
+/// no k, the previous point's q[i − 1]; for the first point, zero (kind 2). In i64: a
+/// prediction may leave the grid, the predicted point may not.
+fn prediction(i: usize, predecessor: &[Option<u32>], q: &[[u32; 3]]) -> ([i64; 3], usize) {
     let at = |k: usize| q.get(k).map(|v| v.map(i64::from));
     let k = predecessor.get(i).copied().flatten().map(|k| k as usize);
     let j = k.and_then(|k| predecessor.get(k).copied().flatten().map(|j| j as usize));
+    let kind = match (k, j) {
+        (Some(_), Some(_)) => 0,
+        (Some(_), None) => 1,
+        (None, _) => 2,
+    };
     let predicted = match (k, j) {
         (Some(k), Some(j)) => at(k)
             .zip(at(j))
@@ -247,7 +286,7 @@ fn prediction(i: usize, predecessor: &[Option<u32>], q: &[[u32; 3]]) -> [i64; 3]
         (Some(k), None) => at(k),
         (None, _) => i.checked_sub(1).and_then(at),
     };
-    predicted.unwrap_or([0; 3])
+    (predicted.unwrap_or([0; 3]), kind)
 }
 
 // ---------------------------------------------------------------------------------------
@@ -345,13 +384,18 @@ pub(crate) fn write_points(
     w.put(&bits)?;
     w.put(&grid.min.to_array())?;
     w.put(&grid.max.to_array())?;
+    let mut stream = BitWriter::new();
+    let mut contexts = [RiceContext::default(); 9];
     for (i, qi) in q.iter().enumerate() {
-        let p = prediction(i, &canon.predecessor, &q);
-        // Grid indices are below 2^24 and predictions within (−2^24, 2^25): the residuals
-        // fit an i32.
-        let d: [i32; 3] = std::array::from_fn(|a| (i64::from(qi[a]) - p[a]) as i32);
-        w.put(&d)?;
+        let (p, kind) = prediction(i, &canon.predecessor, &q);
+        for a in 0..3 {
+            // Grid indices are below 2^24 and predictions within (−2^24, 2^25): the
+            // residuals fit an i32.
+            let d = (i64::from(qi[a]) - p[a]) as i32;
+            contexts[3 * kind + a].put(&mut stream, zigzag(d));
+        }
     }
+    w.put_bytes(&stream.finish())?;
     Ok((w.into_bytes(), grid))
 }
 
@@ -360,7 +404,11 @@ pub(crate) fn read_points(
     limits: &Limits,
     predecessor: &[Option<u32>],
 ) -> Result<(Vec<DVec3>, Grid), DecodeError> {
-    let n = r.count("points", limits.max_points.min(MAX_POINTS), 3)?;
+    // A point costs at least three bits.
+    let n = r.count("points", limits.max_points.min(MAX_POINTS), 0)?;
+    if n as u64 > (r.remaining() as u64).saturating_mul(8) / 3 {
+        return Err(r.error("X2: count exceeds the bytes left"));
+    }
     if n != predecessor.len() {
         return Err(r.error("P4: point count differs from the points the arcs use"));
     }
@@ -376,19 +424,31 @@ pub(crate) fn read_points(
     }
     let grid = Grid { bits, min, max };
     let levels = i64::from(grid.levels());
+    let stream = r.bytes("P7: malformed residual stream")?;
+    if (n as u64).saturating_mul(3) > (stream.len() as u64).saturating_mul(8) {
+        return Err(r.error("P7: residual stream shorter than its points"));
+    }
+    let mut bits = BitReader::new(stream);
+    let mut contexts = [RiceContext::default(); 9];
     let mut q: Vec<[u32; 3]> = Vec::with_capacity(n);
     for i in 0..n {
-        let d: [i32; 3] = r.get("P7: residual is not a zig-zag varint")?;
-        let p = prediction(i, predecessor, &q);
+        let (p, kind) = prediction(i, predecessor, &q);
         let mut qi = [0u32; 3];
         for a in 0..3 {
-            let v = p[a] + i64::from(d[a]);
+            let d = contexts[3 * kind + a]
+                .get(&mut bits)
+                .map(super::bits::unzigzag)
+                .ok_or_else(|| r.error("P7: residual stream ends early"))?;
+            let v = p[a] + i64::from(d);
             if !(0..=levels).contains(&v) {
                 return Err(r.error("P8: grid index out of range"));
             }
             qi[a] = v as u32;
         }
         q.push(qi);
+    }
+    if !bits.is_at_padded_end() {
+        return Err(r.error("P9: bits after the last residual"));
     }
     Ok((q.iter().map(|&qi| grid.dequantise(qi)).collect(), grid))
 }

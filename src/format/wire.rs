@@ -56,6 +56,14 @@ impl Writer {
         self.put(&(n as u64))
     }
 
+    /// Appends a byte string: its length as a varint, then the bytes (bincode's layout of a
+    /// `Vec<u8>`).
+    pub(crate) fn put_bytes(&mut self, bytes: &[u8]) -> Result<(), EncodeError> {
+        self.put_count(bytes.len())?;
+        self.bytes.extend_from_slice(bytes);
+        Ok(())
+    }
+
     /// The payload.
     pub(crate) fn into_bytes(self) -> Vec<u8> {
         self.bytes
@@ -119,6 +127,19 @@ impl<'a> Reader<'a> {
             return Err(self.error("X2: count exceeds the bytes left"));
         }
         usize::try_from(n).map_err(|_| self.error("X2: count exceeds the address space"))
+    }
+
+    /// Reads a byte string written by [`Writer::put_bytes`], checking its length against the
+    /// bytes left; borrows it without copying.
+    pub(crate) fn bytes(&mut self, what: &'static str) -> Result<&'a [u8], DecodeError> {
+        let n: u64 = self.get(what)?;
+        let n = usize::try_from(n)
+            .ok()
+            .filter(|&n| n <= self.bytes.len())
+            .ok_or_else(|| self.error("X2: count exceeds the bytes left"))?;
+        let (head, tail) = self.bytes.split_at(n);
+        self.bytes = tail;
+        Ok(head)
     }
 
     /// Bytes not read yet.
