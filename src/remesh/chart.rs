@@ -49,6 +49,8 @@ pub struct RegionChart {
     clearance: f64,
     /// Edges of `plane_loops` bucketed by horizontal slab, for point-in-polygon.
     index: EdgeIndex,
+    /// The region encloses nothing ([`RegionChart::empty`]).
+    empty: bool,
 }
 
 impl RegionChart {
@@ -118,7 +120,23 @@ impl RegionChart {
             plane_loops: Vec::new(),
             clearance: std::f64::consts::PI,
             index: EdgeIndex::default(),
+            empty: false,
         }
+    }
+
+    /// The chart of a region that encloses nothing (e.g. its outer loop collapsed to a point:
+    /// [`is_degenerate_loop`]): it contains no point.
+    pub fn empty(ellipsoid: &Ellipsoid) -> RegionChart {
+        RegionChart {
+            empty: true,
+            clearance: 0.0,
+            ..RegionChart::with_pole(ellipsoid, DVec3::Z)
+        }
+    }
+
+    /// Whether the region encloses nothing ([`RegionChart::empty`]).
+    pub fn is_empty(&self) -> bool {
+        self.empty
     }
 
     /// The pole: the unit-sphere direction the projection sends to infinity.
@@ -127,14 +145,14 @@ impl RegionChart {
     }
 
     /// Angular distance (radians, on the unit sphere) from the pole to the nearest boundary
-    /// edge; π when the chart covers the whole ellipsoid.
+    /// edge; π when the chart covers the whole ellipsoid, 0 when it is empty.
     pub fn clearance(&self) -> f64 {
         self.clearance
     }
 
     /// Whether the chart covers the whole ellipsoid (the region has no boundary).
     pub fn is_whole(&self) -> bool {
-        self.plane_loops.is_empty()
+        self.plane_loops.is_empty() && !self.empty
     }
 
     /// The region's boundary loops in plane coordinates, the region on their left (outer
@@ -188,7 +206,7 @@ impl RegionChart {
     /// Whether the unit-sphere direction `u` lies in the region. The pole is outside (unless
     /// the chart is whole).
     pub fn contains_sphere(&self, u: DVec3) -> bool {
-        if !u.is_finite() {
+        if !u.is_finite() || self.empty {
             return false;
         }
         if self.is_whole() {
@@ -208,8 +226,24 @@ impl RegionChart {
         if !q.is_finite() {
             return false;
         }
-        self.is_whole() || self.index.contains(q)
+        !self.empty && (self.is_whole() || self.index.contains(q))
     }
+}
+
+/// Whether a boundary loop of finite points encloses nothing on `ellipsoid`: fewer than three
+/// distinct directions from its centre (e.g. quantisation collapsed a tiny region's boundary
+/// to a point). [`RegionChart::new`] refuses such loops; a caller may drop a degenerate hole,
+/// or treat a region whose outer loop is degenerate as empty ([`RegionChart::empty`]), as
+/// [`super::query::chart_region`] does. Loops with a non-finite point are not degenerate
+/// (they are errors).
+pub fn is_degenerate_loop(ellipsoid: &Ellipsoid, points: &[DVec3]) -> bool {
+    if points.iter().any(|p| !p.is_finite()) {
+        return false;
+    }
+    let probe = RegionChart::with_pole(ellipsoid, DVec3::Z);
+    count_distinct(&dedup_directions(
+        points.iter().map(|&p| probe.to_sphere(p)),
+    )) < 3
 }
 
 /// Unit-sphere directions with consecutive repeats (and a repeated first point at the end)

@@ -6,7 +6,7 @@
 //! [`region_loop_points`]) and a region into its chart ([`chart_region`]), shared with the
 //! remesher.
 
-use super::chart::RegionChart;
+use super::chart::{is_degenerate_loop, RegionChart};
 use super::RemeshError;
 use crate::representation::Representation;
 use glam::DVec3;
@@ -66,7 +66,14 @@ pub fn region_loop_points(rep: &Representation, region: u32) -> Vec<Vec<DVec3>> 
 }
 
 /// The chart of one region of a representation: its ellipsoid, bounded by its cycles
-/// ([`RegionChart::new`]). Errors: the region does not exist, or its boundary is unusable.
+/// ([`RegionChart::new`]).
+///
+/// Loops that enclose nothing ([`is_degenerate_loop`]: fewer than three distinct directions,
+/// which real encodings produce when quantisation collapses a region of a few faces to a
+/// point) are handled here rather than refused: a degenerate hole is dropped, and a region
+/// whose outer loop is degenerate is empty ([`RegionChart::empty`]).
+///
+/// Errors: the region does not exist, or its boundary is unusable.
 pub fn chart_region(rep: &Representation, region: u32) -> Result<RegionChart, RemeshError> {
     let ellipsoid = rep
         .ellipsoids
@@ -75,7 +82,20 @@ pub fn chart_region(rep: &Representation, region: u32) -> Result<RegionChart, Re
             region,
             what: "region out of range",
         })?;
-    RegionChart::new(region, ellipsoid, &region_loop_points(rep, region))
+    let cycles = rep.cycles.get(region as usize).map_or(&[][..], |c| c);
+    let mut loops = Vec::new();
+    for (points, cycle) in region_loop_points(rep, region).into_iter().zip(cycles) {
+        if !is_degenerate_loop(ellipsoid, &points) {
+            loops.push(points);
+        } else if cycle.outer {
+            return Ok(RegionChart::empty(ellipsoid));
+        }
+    }
+    if loops.is_empty() && !cycles.is_empty() {
+        // Every loop was a degenerate hole yet there is no outer one: nothing is enclosed.
+        return Ok(RegionChart::empty(ellipsoid));
+    }
+    RegionChart::new(region, ellipsoid, &loops)
 }
 
 /// Where a ray first meets the represented surface.
@@ -86,7 +106,8 @@ pub struct Hit {
     /// The hit point, on the region's ellipsoid.
     pub point: DVec3,
     /// The surface's unit normal there as the ellipsoid's sign orients it (outward for a
-    /// positive ellipsoid, inward for a negative one: the mesh's outward side).
+    /// positive ellipsoid, inward for a negative one: the mesh's outward side); the
+    /// normalised [`crate::ellipsoid::Ellipsoid::normal`].
     pub normal: DVec3,
     /// The region hit.
     pub region: u32,
@@ -152,7 +173,12 @@ impl RayQuery {
                     best = Some(Hit {
                         t,
                         point,
-                        normal: chart.ellipsoid.normal(point),
+                        // Normalised: a decoded rotation is unit only to ~10⁻⁶.
+                        normal: chart
+                            .ellipsoid
+                            .normal(point)
+                            .try_normalize()
+                            .unwrap_or(DVec3::Z),
                         region: region as u32,
                     });
                     // The roots are increasing: the second cannot be nearer.
@@ -207,7 +233,7 @@ mod tests {
                     hits += 1;
                     assert_eq!(h.region, 0);
                     assert_eq!(h.point, origin + h.t * direction);
-                    assert_eq!(h.normal, e.normal(h.point));
+                    assert!((h.normal - e.normal(h.point)).length() < 1e-12);
                 }
             }
             assert!(hits > 500, "{hits}");
@@ -332,5 +358,69 @@ mod tests {
             chart_region(&rep, 7),
             Err(RemeshError::Region { region: 7, .. })
         ));
+    }
+
+    /// A sphere: region 0 above the equator; region 1 below it, with a hole around region 2,
+    /// whose closed boundary arc quantised to three copies of one point (as real encodings
+    /// produce for regions of a few faces). Region 2 is empty, region 1's degenerate hole is
+    /// dropped, and the query still answers.
+    #[test]
+    fn degenerate_loops_give_empty_regions_and_dropped_holes() {
+        let e = Ellipsoid::sphere(DVec3::ZERO, 1.0);
+        let n = 32u32;
+        let mut points: Vec<DVec3> = (0..n)
+            .map(|i| {
+                let a = std::f64::consts::TAU * i as f64 / n as f64;
+                DVec3::new(a.cos(), a.sin(), 0.0)
+            })
+            .collect();
+        points.extend([DVec3::new(0.0, 0.0, -1.0); 3]);
+        let single = |arc: u32, reversed: bool, outer: bool| Cycle {
+            arcs: vec![ArcRef { arc, reversed }],
+            outer,
+        };
+        let rep = Representation {
+            ellipsoids: vec![e, e, e],
+            points,
+            arcs: vec![
+                Arc {
+                    points: (0..n).collect(),
+                    closed: true,
+                    left: 0,
+                    right: Side::Region(1),
+                },
+                Arc {
+                    points: vec![n, n + 1, n + 2],
+                    closed: true,
+                    left: 2,
+                    right: Side::Region(1),
+                },
+            ],
+            cycles: vec![
+                vec![single(0, false, true)],
+                vec![single(0, true, true), single(1, true, false)],
+                vec![single(1, false, true)],
+            ],
+            ..Representation::default()
+        };
+        rep.validate().unwrap();
+        // RegionChart::new itself refuses the degenerate loop.
+        assert!(matches!(
+            RegionChart::new(2, &e, &region_loop_points(&rep, 2)),
+            Err(RemeshError::Region { region: 2, .. })
+        ));
+        let query = RayQuery::new(&rep).unwrap();
+        let charts = query.charts();
+        assert!(charts[2].is_empty() && !charts[2].is_whole());
+        assert_eq!(charts[1].plane_loops().len(), 1);
+        assert_eq!(
+            query.regions_containing(DVec3::new(0.0, 0.0, -1.0)),
+            vec![1]
+        );
+        assert_eq!(query.regions_containing(DVec3::new(0.1, 0.2, 0.9)), vec![0]);
+        let hit = query
+            .first_hit(DVec3::new(0.0, 0.0, -3.0), DVec3::Z)
+            .unwrap();
+        assert_eq!((hit.region, hit.t), (1, 2.0));
     }
 }
