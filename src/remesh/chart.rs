@@ -1,47 +1,146 @@
 //! A region's chart (Simari & Singh 2005, section 5.1): ellipsoid → unit sphere → rotation
 //! that takes a pole far from the region to the north pole → stereographic projection to the
-//! plane, and back.
+//! plane, and back; and the point-in-region test in that plane.
+//!
+//! Orientation conventions:
+//! - boundary loops are given with the region on their left when seen with the **mesh's**
+//!   outward normal up (spec §6.5). For a negative ellipsoid the mesh's outward normal is the
+//!   ellipsoid's inward normal, so on the unit sphere (seen from outside) such a region lies
+//!   on the loops' right; [`RegionChart::new`] reverses those loops.
+//! - [`RegionChart::sphere_to_plane`] (projection from the north pole onto z = 0, plane seen
+//!   from +z) reverses orientation: a loop with a region on its left on the sphere, seen from
+//!   outside, has it on its right in the plane. The chart's stored plane loops
+//!   ([`RegionChart::plane_loops`]) are reversed once more so that the region is on their
+//!   left in the plane: the outer boundary counter-clockwise, holes clockwise.
 
-use crate::ellipsoid::Ellipsoid;
+use super::RemeshError;
+use crate::ellipsoid::{Ellipsoid, Sign};
 use glam::{DQuat, DVec2, DVec3};
 
-/// A map between one ellipsoid's surface and the plane.
+/// Number of evenly spread (Fibonacci) directions tried as poles, besides the loops' own
+/// centres and their antipodes.
+const POLE_CANDIDATES: usize = 256;
+
+/// Loops beyond this count add no candidate poles of their own (hostile inputs can have
+/// many).
+const MAX_LOOP_CANDIDATES: usize = 64;
+
+/// Unit-sphere directions closer than this count as one point.
+const SAME_DIRECTION: f64 = 1e-12;
+
+/// A pole closer than this angle (radians) to the boundary is never chosen: the boundary
+/// would project to coordinates too large to test against.
+const MIN_CLEARANCE: f64 = 1e-6;
+
+/// A map between one ellipsoid's surface and the plane, with the region's boundary projected
+/// into it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RegionChart {
     /// The region's ellipsoid.
     pub ellipsoid: Ellipsoid,
     /// Rotates unit-sphere points so that the chosen pole becomes the north pole (0, 0, 1).
     pub rotation: DQuat,
+    /// The boundary loops in plane coordinates, region on the left (outer counter-clockwise,
+    /// holes clockwise), consecutive duplicates removed, first point not repeated. Empty:
+    /// the chart covers the whole ellipsoid.
+    plane_loops: Vec<Vec<DVec2>>,
+    /// Angular distance (radians, on the unit sphere) from the pole to the nearest boundary
+    /// edge; π for the whole ellipsoid.
+    clearance: f64,
+    /// Edges of `plane_loops` bucketed by horizontal slab, for point-in-polygon.
+    index: EdgeIndex,
 }
 
 impl RegionChart {
     /// The chart of region `region` on `ellipsoid`, bounded by `loops`: closed polylines of
-    /// boundary points (the first point not repeated at the end), each with the region on its
-    /// left when seen with the mesh's outward normal up (spec §6.5). No loops: the whole
-    /// ellipsoid.
+    /// boundary points near the ellipsoid (mapped to the unit sphere by
+    /// [`RegionChart::to_sphere`]; the first point not repeated at the end), each with the
+    /// region on its left when seen with the mesh's outward normal up (spec §6.5; for a
+    /// negative ellipsoid that is the inner side). No loops: the whole ellipsoid.
     ///
-    /// The pole is chosen away from the region (section 5.1). This first version takes the
-    /// antipode of the loops' mean direction.
+    /// The pole — the point the projection sends to infinity — is chosen outside the region
+    /// and as far as possible from its boundary (section 5.1, "rotate the region away from
+    /// the north pole"): evenly spread candidate directions plus each loop's centre and
+    /// antipode are scored by their angular distance to the boundary's great-circle edges;
+    /// the best one outside the region is then improved by a local pattern search. A
+    /// candidate is outside the region exactly when the region's projected loops, oriented
+    /// with the region on their left in the plane, enclose a positive total signed area
+    /// (with the pole inside, the bounded side is the complement and the sum is negative).
+    ///
+    /// Errors ([`RemeshError::Region`]): the ellipsoid is not valid, a point is not finite,
+    /// a loop has fewer than three distinct directions on the unit sphere, or no candidate
+    /// pole lies outside the region (e.g. degenerate loops enclosing nothing).
     pub fn new(
         region: u32,
         ellipsoid: &Ellipsoid,
         loops: &[Vec<DVec3>],
-    ) -> Result<RegionChart, super::RemeshError> {
-        let _ = region;
+    ) -> Result<RegionChart, RemeshError> {
+        let fail = |what: &'static str| RemeshError::Region { region, what };
+        if !ellipsoid.is_valid() {
+            return Err(fail("ellipsoid not valid"));
+        }
         let probe = RegionChart::with_pole(ellipsoid, DVec3::Z);
-        let sum: DVec3 = loops.iter().flatten().map(|&p| probe.to_sphere(p)).sum();
-        let pole = (-sum).try_normalize().unwrap_or(DVec3::Z);
-        Ok(RegionChart::with_pole(ellipsoid, pole))
+        let mut sphere_loops = Vec::with_capacity(loops.len());
+        for l in loops {
+            if l.iter().any(|p| !p.is_finite()) {
+                return Err(fail("boundary point not finite"));
+            }
+            let mut s = dedup_directions(l.iter().map(|&p| probe.to_sphere(p)));
+            if count_distinct(&s) < 3 {
+                return Err(fail("boundary loop has fewer than 3 distinct points"));
+            }
+            if ellipsoid.sign == Sign::Negative {
+                s.reverse();
+            }
+            sphere_loops.push(s);
+        }
+        if sphere_loops.is_empty() {
+            return Ok(probe);
+        }
+        let (pole, clearance) = choose_pole(ellipsoid, &sphere_loops).ok_or(fail(
+            "no pole outside the region (its boundary loops enclose nothing)",
+        ))?;
+        let mut chart = RegionChart::with_pole(ellipsoid, pole);
+        chart.plane_loops = project_loops(&chart, &sphere_loops);
+        chart.clearance = clearance;
+        chart.index = EdgeIndex::new(&chart.plane_loops);
+        Ok(chart)
     }
 
     /// The chart whose projection centre (the point mapped to infinity) is `pole`, a
-    /// direction on the unit sphere of `ellipsoid`.
+    /// direction on the unit sphere of `ellipsoid`, with no boundary: it contains the whole
+    /// ellipsoid.
     pub fn with_pole(ellipsoid: &Ellipsoid, pole: DVec3) -> RegionChart {
         let pole = pole.try_normalize().unwrap_or(DVec3::Z);
         RegionChart {
             ellipsoid: *ellipsoid,
             rotation: DQuat::from_rotation_arc(pole, DVec3::Z),
+            plane_loops: Vec::new(),
+            clearance: std::f64::consts::PI,
+            index: EdgeIndex::default(),
         }
+    }
+
+    /// The pole: the unit-sphere direction the projection sends to infinity.
+    pub fn pole(&self) -> DVec3 {
+        self.rotation.inverse() * DVec3::Z
+    }
+
+    /// Angular distance (radians, on the unit sphere) from the pole to the nearest boundary
+    /// edge; π when the chart covers the whole ellipsoid.
+    pub fn clearance(&self) -> f64 {
+        self.clearance
+    }
+
+    /// Whether the chart covers the whole ellipsoid (the region has no boundary).
+    pub fn is_whole(&self) -> bool {
+        self.plane_loops.is_empty()
+    }
+
+    /// The region's boundary loops in plane coordinates, the region on their left (outer
+    /// boundary counter-clockwise, holes clockwise). Empty for the whole ellipsoid.
+    pub fn plane_loops(&self) -> &[Vec<DVec2>] {
+        &self.plane_loops
     }
 
     /// A point (on or near the ellipsoid) → its radial projection's unit-sphere direction.
@@ -53,6 +152,7 @@ impl RegionChart {
     }
 
     /// Unit-sphere direction → plane, stereographically from the north pole after rotation.
+    /// Reverses orientation (see the module documentation).
     pub fn sphere_to_plane(&self, u: DVec3) -> DVec2 {
         let v = self.rotation * u;
         // The pole itself goes to a far but finite point.
@@ -77,27 +177,601 @@ impl RegionChart {
     pub fn from_plane(&self, q: DVec2) -> DVec3 {
         self.ellipsoid.from_unit_sphere(self.plane_to_sphere(q))
     }
+
+    /// Whether the radial projection of `p` onto the ellipsoid lies in the region (section
+    /// 5.1). Non-finite points are outside; the ellipsoid's centre counts as the direction of
+    /// its local +x axis.
+    pub fn contains(&self, p: DVec3) -> bool {
+        p.is_finite() && self.contains_sphere(self.to_sphere(p))
+    }
+
+    /// Whether the unit-sphere direction `u` lies in the region. The pole is outside (unless
+    /// the chart is whole).
+    pub fn contains_sphere(&self, u: DVec3) -> bool {
+        if !u.is_finite() {
+            return false;
+        }
+        if self.is_whole() {
+            return true;
+        }
+        // The pole and directions rounding onto it are outside the region by construction.
+        if (self.rotation * u).z >= 1.0 {
+            return false;
+        }
+        self.contains_plane(self.sphere_to_plane(u))
+    }
+
+    /// Whether the plane point `q` lies in the region: even–odd rule over all projected loops
+    /// (the outer cycle and its holes; valid because the pole is outside the region).
+    /// Non-finite points are outside; a whole chart contains every finite point.
+    pub fn contains_plane(&self, q: DVec2) -> bool {
+        if !q.is_finite() {
+            return false;
+        }
+        self.is_whole() || self.index.contains(q)
+    }
+}
+
+/// Unit-sphere directions with consecutive repeats (and a repeated first point at the end)
+/// removed.
+fn dedup_directions(points: impl Iterator<Item = DVec3>) -> Vec<DVec3> {
+    let mut out: Vec<DVec3> = Vec::new();
+    for u in points {
+        if out
+            .last()
+            .is_none_or(|&l| (l - u).length() > SAME_DIRECTION)
+        {
+            out.push(u);
+        }
+    }
+    while out.len() > 1 {
+        match (out.first(), out.last()) {
+            (Some(&a), Some(&b)) if (a - b).length() <= SAME_DIRECTION => {
+                out.pop();
+            }
+            _ => break,
+        }
+    }
+    out
+}
+
+/// The number of distinct directions in `points`, counted up to three.
+fn count_distinct(points: &[DVec3]) -> usize {
+    let mut found: Vec<DVec3> = Vec::with_capacity(3);
+    for &u in points {
+        if found.iter().all(|&f| (f - u).length() > SAME_DIRECTION) {
+            found.push(u);
+            if found.len() == 3 {
+                break;
+            }
+        }
+    }
+    found.len()
+}
+
+/// `n` directions spread evenly over the unit sphere (a Fibonacci lattice); deterministic.
+fn fibonacci_directions(n: usize) -> Vec<DVec3> {
+    let golden_angle = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    (0..n)
+        .map(|i| {
+            let z = 1.0 - (2.0 * i as f64 + 1.0) / n as f64;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let phi = golden_angle * i as f64;
+            DVec3::new(r * phi.cos(), r * phi.sin(), z)
+        })
+        .collect()
+}
+
+/// The angle between two unit vectors, accurate for small and large angles.
+fn angle_between(a: DVec3, b: DVec3) -> f64 {
+    a.cross(b).length().atan2(a.dot(b))
+}
+
+/// Angular distance from `c` to the shorter great-circle arc from `a` to `b` (all unit).
+fn arc_distance(c: DVec3, a: DVec3, b: DVec3) -> f64 {
+    let ends = angle_between(c, a).min(angle_between(c, b));
+    let Some(n) = a.cross(b).try_normalize() else {
+        return ends;
+    };
+    // c's closest point on the great circle lies between a and b.
+    if a.cross(c).dot(n) >= 0.0 && c.cross(b).dot(n) >= 0.0 {
+        c.dot(n).abs().min(1.0).asin().min(ends)
+    } else {
+        ends
+    }
+}
+
+/// Angular distance from `c` to the nearest edge of the loops.
+fn boundary_distance(c: DVec3, loops: &[Vec<DVec3>]) -> f64 {
+    let mut best = f64::INFINITY;
+    for l in loops {
+        for (i, &a) in l.iter().enumerate() {
+            let b = l.get(i + 1).or(l.first()).copied().unwrap_or(a);
+            best = best.min(arc_distance(c, a, b));
+        }
+    }
+    best
+}
+
+/// Unit-sphere loops (region on the left, seen from outside) → plane loops with the region
+/// on their left in the plane (the projection reverses orientation, so each is reversed).
+fn project_loops(chart: &RegionChart, sphere_loops: &[Vec<DVec3>]) -> Vec<Vec<DVec2>> {
+    sphere_loops
+        .iter()
+        .map(|l| l.iter().rev().map(|&u| chart.sphere_to_plane(u)).collect())
+        .collect()
+}
+
+/// Twice the signed area of a closed polygon (positive counter-clockwise).
+fn doubled_signed_area(polygon: &[DVec2]) -> f64 {
+    let mut sum = 0.0;
+    for (i, &a) in polygon.iter().enumerate() {
+        let b = polygon.get(i + 1).or(polygon.first()).copied().unwrap_or(a);
+        // Relative to the first point, to limit cancellation.
+        let (a, b) = (a - polygon[0], b - polygon[0]);
+        sum += a.perp_dot(b);
+    }
+    sum
+}
+
+/// Whether `pole` lies outside the region bounded by `sphere_loops` (region on the left, seen
+/// from outside): then the region's image in the plane is bounded and its loops, region on
+/// the left, enclose a positive total area; with the pole inside, the bounded side is the
+/// complement and the total is negative.
+fn is_outside(ellipsoid: &Ellipsoid, sphere_loops: &[Vec<DVec3>], pole: DVec3) -> bool {
+    let chart = RegionChart::with_pole(ellipsoid, pole);
+    let total: f64 = project_loops(&chart, sphere_loops)
+        .iter()
+        .map(|l| doubled_signed_area(l))
+        .sum();
+    total.is_finite() && total > 0.0
+}
+
+/// The pole outside the region farthest from its boundary, and that distance (section 5.1).
+fn choose_pole(ellipsoid: &Ellipsoid, loops: &[Vec<DVec3>]) -> Option<(DVec3, f64)> {
+    let mut candidates = fibonacci_directions(POLE_CANDIDATES);
+    let mean: DVec3 = loops.iter().flatten().copied().sum();
+    candidates.extend((-mean).try_normalize());
+    for l in loops.iter().take(MAX_LOOP_CANDIDATES) {
+        let centre: DVec3 = l.iter().copied().sum();
+        if let Some(c) = centre.try_normalize() {
+            candidates.push(c);
+            candidates.push(-c);
+        }
+    }
+    let mut scored: Vec<(f64, DVec3)> = candidates
+        .into_iter()
+        .map(|c| (boundary_distance(c, loops), c))
+        .collect();
+    // Stable: ties keep the candidates' order, so the choice is deterministic.
+    scored.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let (mut best_distance, mut best) = scored
+        .into_iter()
+        .filter(|&(d, _)| d >= MIN_CLEARANCE)
+        .find(|&(_, c)| is_outside(ellipsoid, loops, c))?;
+    // Pattern search: move the pole away from the boundary while it improves.
+    let mut step = 0.5 * (4.0 * std::f64::consts::PI / POLE_CANDIDATES as f64).sqrt();
+    for _ in 0..40 {
+        let (t1, t2) = best.any_orthonormal_pair();
+        let mut moves: Vec<(f64, DVec3)> = (0..8)
+            .filter_map(|k| {
+                let (s, c) = (k as f64 * std::f64::consts::FRAC_PI_4).sin_cos();
+                let dir = t1 * c + t2 * s;
+                (best * step.cos() + dir * step.sin()).try_normalize()
+            })
+            .map(|c| (boundary_distance(c, loops), c))
+            .filter(|&(d, _)| d > best_distance)
+            .collect();
+        moves.sort_by(|a, b| b.0.total_cmp(&a.0));
+        match moves
+            .into_iter()
+            .find(|&(_, c)| is_outside(ellipsoid, loops, c))
+        {
+            Some((d, c)) => (best_distance, best) = (d, c),
+            None => {
+                step *= 0.5;
+                if step < 1e-4 {
+                    break;
+                }
+            }
+        }
+    }
+    Some((best, best_distance))
+}
+
+/// Largest number of horizontal slabs of an [`EdgeIndex`].
+const MAX_SLABS: usize = 4096;
+
+/// The edges of closed plane polygons, bucketed by horizontal slab so that an even–odd
+/// crossing test only looks at the edges of one slab.
+#[derive(Debug, Clone, PartialEq, Default)]
+struct EdgeIndex {
+    /// Bounding box of all points.
+    min: DVec2,
+    max: DVec2,
+    /// Every edge, as its two ends.
+    edges: Vec<[DVec2; 2]>,
+    /// Slab count; slab `s` covers y in `min.y + [s, s + 1) · height / slabs`.
+    slabs: usize,
+    /// Per slab, the range of `items` holding its edges (CSR offsets, `slabs + 1` long).
+    starts: Vec<usize>,
+    /// Edge indices, slab by slab.
+    items: Vec<u32>,
+}
+
+impl EdgeIndex {
+    fn new(loops: &[Vec<DVec2>]) -> EdgeIndex {
+        let mut edges = Vec::new();
+        let (mut min, mut max) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+        for l in loops {
+            for (i, &a) in l.iter().enumerate() {
+                let b = l.get(i + 1).or(l.first()).copied().unwrap_or(a);
+                min = min.min(a);
+                max = max.max(a);
+                if a != b {
+                    edges.push([a, b]);
+                }
+            }
+        }
+        if edges.is_empty() || !(min.is_finite() && max.is_finite()) {
+            return EdgeIndex::default();
+        }
+        let mut index = EdgeIndex {
+            min,
+            max,
+            edges,
+            ..EdgeIndex::default()
+        };
+        // About two edges per slab on a smooth loop; fewer slabs when long edges would fill
+        // many of them.
+        let n = index.edges.len();
+        let mut slabs = (n / 2).clamp(1, MAX_SLABS);
+        while slabs > 1 && index.entries(slabs) > 16 * n + 1024 {
+            slabs /= 2;
+        }
+        index.slabs = slabs;
+        let mut counts = vec![0usize; slabs + 1];
+        for e in &index.edges {
+            let (lo, hi) = index.slab_range(e);
+            for c in &mut counts[lo + 1..=hi + 1] {
+                *c += 1;
+            }
+        }
+        for s in 0..slabs {
+            counts[s + 1] += counts[s];
+        }
+        let mut fill = counts.clone();
+        let mut items = vec![0u32; counts[slabs]];
+        for (k, e) in index.edges.iter().enumerate() {
+            let (lo, hi) = index.slab_range(e);
+            for f in &mut fill[lo..=hi] {
+                items[*f] = k as u32;
+                *f += 1;
+            }
+        }
+        index.starts = counts;
+        index.items = items;
+        index
+    }
+
+    /// The slab holding height `y` (clamped into range).
+    fn slab(&self, y: f64, slabs: usize) -> usize {
+        let h = self.max.y - self.min.y;
+        if h <= 0.0 {
+            return 0;
+        }
+        let s = ((y - self.min.y) / h * slabs as f64).floor();
+        // `as` saturates; NaN cannot occur for points inside the finite box.
+        (s.max(0.0) as usize).min(slabs - 1)
+    }
+
+    /// First and last slab an edge touches.
+    fn slab_range(&self, e: &[DVec2; 2]) -> (usize, usize) {
+        let (a, b) = (self.slab(e[0].y, self.slabs), self.slab(e[1].y, self.slabs));
+        (a.min(b), a.max(b))
+    }
+
+    /// Slab entries the edges would need with `slabs` slabs.
+    fn entries(&self, slabs: usize) -> usize {
+        self.edges
+            .iter()
+            .map(|e| self.slab(e[0].y, slabs).abs_diff(self.slab(e[1].y, slabs)) + 1)
+            .sum()
+    }
+
+    /// Even–odd point-in-polygon over all the loops (a ray towards +x).
+    fn contains(&self, q: DVec2) -> bool {
+        if self.edges.is_empty()
+            || q.x < self.min.x
+            || q.y < self.min.y
+            || q.x > self.max.x
+            || q.y > self.max.y
+        {
+            return false;
+        }
+        let s = self.slab(q.y, self.slabs);
+        let (Some(&from), Some(&to)) = (self.starts.get(s), self.starts.get(s + 1)) else {
+            return false;
+        };
+        let mut inside = false;
+        for &k in self.items.get(from..to).unwrap_or(&[]) {
+            let Some(&[a, b]) = self.edges.get(k as usize) else {
+                continue;
+            };
+            if (a.y > q.y) != (b.y > q.y) {
+                let x = a.x + (q.y - a.y) * (b.x - a.x) / (b.y - a.y);
+                if q.x < x {
+                    inside = !inside;
+                }
+            }
+        }
+        inside
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::rng::SplitMix64;
 
-    #[test]
-    fn plane_round_trip_is_exact_to_rounding() {
-        let e = Ellipsoid {
+    fn tilted(sign: Sign) -> Ellipsoid {
+        Ellipsoid {
             center: DVec3::new(0.3, -1.0, 2.0),
             rotation: DQuat::from_euler(glam::EulerRot::XYZ, 0.3, 1.1, -0.4),
             radii: DVec3::new(2.0, 0.5, 1.0),
-            sign: crate::ellipsoid::Sign::Positive,
-        };
+            sign,
+        }
+    }
+
+    /// `n` unit directions on the circle at angle `half_angle` around `axis`, counter-clockwise
+    /// seen from outside above `axis` (the cap around `axis` on the left) unless `clockwise`.
+    fn circle(axis: DVec3, half_angle: f64, n: usize, clockwise: bool) -> Vec<DVec3> {
+        let a = axis.normalize();
+        let t1 = a.any_orthonormal_pair().0;
+        let t2 = a.cross(t1);
+        let mut out: Vec<DVec3> = (0..n)
+            .map(|i| {
+                let phi = std::f64::consts::TAU * i as f64 / n as f64;
+                a * half_angle.cos() + (t1 * phi.cos() + t2 * phi.sin()) * half_angle.sin()
+            })
+            .collect();
+        if clockwise {
+            out.reverse();
+        }
+        out
+    }
+
+    /// Unit directions → points near the ellipsoid (radially off by up to ±0.1%).
+    fn on_ellipsoid(e: &Ellipsoid, dirs: &[DVec3], rng: &mut SplitMix64) -> Vec<DVec3> {
+        dirs.iter()
+            .map(|&u| e.from_unit_sphere(u * rng.range_f64(0.999, 1.001)))
+            .collect()
+    }
+
+    #[test]
+    fn plane_round_trip_is_exact_to_rounding() {
+        let e = tilted(Sign::Positive);
         let chart = RegionChart::with_pole(&e, DVec3::new(1.0, 2.0, -0.5));
-        let mut rng = crate::rng::SplitMix64::new(7);
+        let mut rng = SplitMix64::new(7);
         for _ in 0..1000 {
             let u = rng.unit_vector();
             let p = e.from_unit_sphere(u);
             let back = chart.from_plane(chart.to_plane(p));
             assert!((back - p).length() < 1e-9, "{p} → {back}");
         }
+    }
+
+    /// A cap bounded by a circle of latitude (local z = cos θ), both loop directions, both
+    /// signs, small and large caps: `contains` agrees with the analytic answer for 4000 random
+    /// points (at radial scales 0.5–2) outside a band of ±0.01 rad around the circle; the pole
+    /// lies in the complement, at least 95% as far from the circle as the best pole.
+    #[test]
+    fn cap_regions_match_the_analytic_answer() {
+        let mut rng = SplitMix64::new(11);
+        for sign in [Sign::Positive, Sign::Negative] {
+            let e = tilted(sign);
+            for theta in [0.3f64, 1.2, 2.0, 2.8] {
+                for reversed in [false, true] {
+                    let dirs = circle(DVec3::Z, theta, 200, reversed);
+                    let points = on_ellipsoid(&e, &dirs, &mut rng);
+                    let chart = RegionChart::new(0, &e, &[points]).unwrap();
+                    // Counter-clockwise around +z seen from outside: the cap z > cos θ is on
+                    // the left; reversing the loop or the sign (mesh normal inward) swaps.
+                    let cap = reversed == (sign == Sign::Negative);
+                    let in_region = |u: DVec3| (angle_between(u, DVec3::Z) < theta) == cap;
+                    let pole = chart.pole();
+                    assert!(!in_region(pole), "sign {sign:?} θ {theta} rev {reversed}");
+                    let region_radius = if cap {
+                        theta
+                    } else {
+                        std::f64::consts::PI - theta
+                    };
+                    let best = std::f64::consts::PI - region_radius;
+                    assert!(
+                        chart.clearance() >= 0.95 * best,
+                        "clearance {} best {best}",
+                        chart.clearance()
+                    );
+                    // The outer loop runs counter-clockwise in the plane.
+                    assert!(doubled_signed_area(&chart.plane_loops()[0]) > 0.0);
+                    let mut checked = 0;
+                    for _ in 0..4000 {
+                        let u = rng.unit_vector();
+                        if (angle_between(u, DVec3::Z) - theta).abs() < 0.01 {
+                            continue;
+                        }
+                        checked += 1;
+                        let p = e.from_unit_sphere(u * rng.range_f64(0.5, 2.0));
+                        assert_eq!(chart.contains(p), in_region(u), "{u}");
+                    }
+                    assert!(checked > 3900);
+                }
+            }
+        }
+    }
+
+    /// A sphere with three circular holes (half-angles 0.5, 0.3, 0.4 rad): the pole goes into
+    /// the biggest hole, within 0.02 rad of its centre; `contains` is exact outside ±0.01 rad
+    /// bands. Then a region covering 95% of the sphere (one hole of 5% of the area).
+    #[test]
+    fn regions_with_holes_put_the_pole_in_the_biggest_hole() {
+        let mut rng = SplitMix64::new(12);
+        let e = tilted(Sign::Positive);
+        let holes = [(DVec3::Z, 0.5), (-DVec3::Z, 0.3), (DVec3::X, 0.4)];
+        let loops: Vec<Vec<DVec3>> = holes
+            .iter()
+            .map(|&(axis, angle)| on_ellipsoid(&e, &circle(axis, angle, 150, true), &mut rng))
+            .collect();
+        let chart = RegionChart::new(3, &e, &loops).unwrap();
+        assert!(
+            angle_between(chart.pole(), DVec3::Z) < 0.02,
+            "{}",
+            chart.pole()
+        );
+        assert!(chart.clearance() > 0.48);
+        let mut checked = 0;
+        for _ in 0..4000 {
+            let u = rng.unit_vector();
+            let d: Vec<f64> = holes
+                .iter()
+                .map(|&(a, angle)| angle_between(u, a) - angle)
+                .collect();
+            if d.iter().any(|x| x.abs() < 0.01) {
+                continue;
+            }
+            checked += 1;
+            let inside = d.iter().all(|&x| x > 0.0);
+            assert_eq!(chart.contains(e.from_unit_sphere(u)), inside, "{u}");
+        }
+        assert!(checked > 3800);
+
+        // 95%: a hole of area 0.05 · 4π is a cap with 1 − cos θ = 0.1.
+        let axis = DVec3::new(1.0, -2.0, 0.5).normalize();
+        let theta = 0.9f64.acos();
+        let hole = on_ellipsoid(&e, &circle(axis, theta, 100, true), &mut rng);
+        let chart = RegionChart::new(4, &e, &[hole]).unwrap();
+        assert!(angle_between(chart.pole(), axis) < 0.02);
+        let mut inside = 0;
+        for _ in 0..4000 {
+            let u = rng.unit_vector();
+            let a = angle_between(u, axis);
+            if (a - theta).abs() < 0.01 {
+                continue;
+            }
+            assert_eq!(chart.contains(e.from_unit_sphere(u)), a > theta);
+            inside += usize::from(a > theta);
+        }
+        // About 95% of the points, give or take 1.5% (binomial σ ≈ 0.35%).
+        assert!((3740..=3860).contains(&inside), "{inside}");
+    }
+
+    #[test]
+    fn no_loops_is_the_whole_ellipsoid() {
+        let e = tilted(Sign::Negative);
+        let chart = RegionChart::new(0, &e, &[]).unwrap();
+        assert!(chart.is_whole());
+        let mut rng = SplitMix64::new(13);
+        for _ in 0..100 {
+            assert!(chart.contains(e.from_unit_sphere(rng.unit_vector())));
+        }
+        assert!(chart.contains(e.center));
+        assert!(!chart.contains(DVec3::NAN));
+    }
+
+    #[test]
+    fn hostile_loops_give_typed_errors() {
+        let e = tilted(Sign::Positive);
+        let good = circle(DVec3::Z, 1.0, 20, false)
+            .iter()
+            .map(|&u| e.from_unit_sphere(u))
+            .collect::<Vec<_>>();
+        let region_error = |loops: &[Vec<DVec3>]| match RegionChart::new(5, &e, loops) {
+            Err(RemeshError::Region { region: 5, what }) => what,
+            other => panic!("expected a region error, got {other:?}"),
+        };
+        let mut nan = good.clone();
+        nan[3].y = f64::NAN;
+        assert!(region_error(&[good.clone(), nan]).contains("not finite"));
+        let mut inf = good.clone();
+        inf[0].x = f64::INFINITY;
+        assert!(region_error(&[inf]).contains("not finite"));
+        assert!(region_error(&[good[..2].to_vec()]).contains("fewer than 3"));
+        assert!(region_error(&[vec![good[0]; 10]]).contains("fewer than 3"));
+        assert!(region_error(&[vec![]]).contains("fewer than 3"));
+        // Three pool points on one ray from the centre are one direction.
+        let ray = [1.0, 2.0, 3.0].map(|s| e.center + DVec3::X * s).to_vec();
+        assert!(region_error(&[ray]).contains("fewer than 3"));
+        // Back and forth along a path: distinct points, yet the loop encloses nothing.
+        let path = circle(DVec3::Z, 1.0, 20, false)[..10]
+            .iter()
+            .map(|&u| e.from_unit_sphere(u))
+            .collect::<Vec<_>>();
+        let there_and_back: Vec<DVec3> = path
+            .iter()
+            .chain(path.iter().rev().skip(1))
+            .copied()
+            .collect();
+        match RegionChart::new(5, &e, &[there_and_back]) {
+            Ok(chart) => assert!(chart.clearance() >= MIN_CLEARANCE),
+            Err(RemeshError::Region { region: 5, .. }) => {}
+            Err(other) => panic!("{other}"),
+        }
+        // Huge but finite coordinates, and a broken ellipsoid.
+        let huge = vec![
+            DVec3::splat(1e308),
+            DVec3::new(-1e308, 1e308, 0.0),
+            DVec3::X,
+        ];
+        let _ = RegionChart::new(5, &e, &[huge]);
+        let mut bad = e;
+        bad.radii.x = 0.0;
+        assert!(matches!(
+            RegionChart::new(5, &bad, &[good]),
+            Err(RemeshError::Region { .. })
+        ));
+    }
+
+    #[test]
+    fn edge_index_agrees_with_a_plain_even_odd_scan() {
+        let mut rng = SplitMix64::new(14);
+        // A star polygon with a hole, 400 points.
+        let star: Vec<DVec2> = (0..300)
+            .map(|i| {
+                let a = std::f64::consts::TAU * i as f64 / 300.0;
+                let r = 1.0 + 0.4 * (7.0 * a).sin();
+                DVec2::new(r * a.cos(), r * a.sin())
+            })
+            .collect();
+        let hole: Vec<DVec2> = (0..100)
+            .rev()
+            .map(|i| {
+                let a = std::f64::consts::TAU * i as f64 / 100.0;
+                DVec2::new(0.1 + 0.3 * a.cos(), 0.3 * a.sin())
+            })
+            .collect();
+        let loops = vec![star, hole];
+        let index = EdgeIndex::new(&loops);
+        assert!(index.slabs > 1);
+        let plain = |q: DVec2| {
+            let mut inside = false;
+            for l in &loops {
+                for (i, &a) in l.iter().enumerate() {
+                    let b = l[(i + 1) % l.len()];
+                    if (a.y > q.y) != (b.y > q.y)
+                        && q.x < a.x + (q.y - a.y) * (b.x - a.x) / (b.y - a.y)
+                    {
+                        inside = !inside;
+                    }
+                }
+            }
+            inside
+        };
+        let mut inside = 0;
+        for _ in 0..20_000 {
+            let q = DVec2::new(rng.range_f64(-1.6, 1.6), rng.range_f64(-1.6, 1.6));
+            assert_eq!(index.contains(q), plain(q), "{q}");
+            inside += usize::from(plain(q));
+        }
+        assert!(inside > 2000 && inside < 18_000);
     }
 }
