@@ -13,7 +13,14 @@
 //! ```
 
 use super::chart::RegionChart;
-use glam::DVec3;
+use super::RemeshError;
+use glam::{DVec2, DVec3};
+use spade::handles::{FixedFaceHandle, FixedVertexHandle, InnerTag};
+use spade::{
+    validate_coordinate, ConstrainedDelaunayTriangulation, HasPosition, Point2, Triangulation,
+};
+use std::cmp::Ordering;
+use std::collections::{BinaryHeap, HashMap, VecDeque};
 
 /// What one region's triangulation starts from.
 #[derive(Debug, Clone, Copy)]
@@ -48,4 +55,563 @@ pub struct RegionMesh {
     /// ([`crate::ellipsoid::Ellipsoid::normal`]): outward for positive ellipsoids, inward for
     /// negative ones.
     pub triangles: Vec<[Corner; 3]>,
+}
+
+/// A vertex of the chart's triangulation: its plane position, its 3D position, what it is.
+#[derive(Debug, Clone, Copy)]
+struct Vertex {
+    position: Point2<f64>,
+    point: DVec3,
+    corner: Corner,
+    /// For a boundary vertex, the chart positions of its neighbours along its (first) loop.
+    along: Option<[DVec2; 2]>,
+}
+
+impl HasPosition for Vertex {
+    type Scalar = f64;
+
+    fn position(&self) -> Point2<f64> {
+        self.position
+    }
+}
+
+/// The face data says whether the face lies inside the region.
+type Cdt = ConstrainedDelaunayTriangulation<Vertex, (), (), bool>;
+
+fn region_error(region: u32, what: &'static str) -> RemeshError {
+    RemeshError::Region { region, what }
+}
+
+fn to_point(q: DVec2) -> Point2<f64> {
+    Point2::new(q.x, q.y)
+}
+
+fn is_valid_plane_point(q: DVec2) -> bool {
+    validate_coordinate(q.x).is_ok() && validate_coordinate(q.y).is_ok()
+}
+
+/// A region's constrained Delaunay triangulation in its chart, its faces marked inside or
+/// outside the region. Shared by both schemes.
+struct RegionCdt {
+    chart: RegionChart,
+    cdt: Cdt,
+    /// Inserted interior vertices, in insertion order ([`Corner::Interior`] indices).
+    interior: Vec<DVec3>,
+    /// Whether a face counter-clockwise in the plane is clockwise about the ellipsoid's
+    /// signed normal, so that [`RegionCdt::finish`] must reverse it.
+    flip: bool,
+}
+
+impl RegionCdt {
+    /// The boundary-only triangulation: every boundary vertex inserted once, every loop edge a
+    /// constraint, the faces inside the region found by a flood fill from the outer face that
+    /// toggles inside/outside across constraint edges.
+    fn new(input: &RegionInput) -> Result<RegionCdt, RemeshError> {
+        let region = input.region;
+        let err = |what| region_error(region, what);
+        let loops = clean_loops(input)?;
+        let chart = input.chart.clone();
+        if !chart.ellipsoid.is_valid() {
+            return Err(err("its ellipsoid is degenerate"));
+        }
+
+        let mut cdt = Cdt::new();
+        let mut handles: HashMap<u32, FixedVertexHandle> = HashMap::new();
+        let mut plane_sum = DVec2::ZERO;
+        let mut hint: Option<FixedVertexHandle> = None;
+        let mut planes: HashMap<u32, DVec2> = HashMap::new();
+        for &i in loops.iter().flatten() {
+            // clean_loops checked the index.
+            let point = input
+                .boundary
+                .get(i as usize)
+                .copied()
+                .unwrap_or(DVec3::NAN);
+            if !point.is_finite() {
+                return Err(err("a boundary point is not finite"));
+            }
+            let q = chart.to_plane(point);
+            if !is_valid_plane_point(q) {
+                return Err(err("a boundary point has no valid position in the chart"));
+            }
+            planes.insert(i, q);
+        }
+        let plane_of = |i: u32| planes.get(&i).copied().unwrap_or(DVec2::NAN);
+        for lp in &loops {
+            for (k, &i) in lp.iter().enumerate() {
+                if handles.contains_key(&i) {
+                    continue;
+                }
+                let point = input
+                    .boundary
+                    .get(i as usize)
+                    .copied()
+                    .unwrap_or(DVec3::NAN);
+                let q = plane_of(i);
+                plane_sum += q;
+                let previous = lp[(k + lp.len() - 1) % lp.len()];
+                let next = lp[(k + 1) % lp.len()];
+                let vertex = Vertex {
+                    position: to_point(q),
+                    point,
+                    corner: Corner::Boundary(i),
+                    along: Some([plane_of(previous), plane_of(next)]),
+                };
+                let before = cdt.num_vertices();
+                let inserted = match hint {
+                    Some(h) => cdt.insert_with_hint(vertex, h),
+                    None => cdt.insert(vertex),
+                };
+                let handle = inserted.map_err(|_| err("a boundary point cannot be inserted"))?;
+                if cdt.num_vertices() == before {
+                    return Err(err("two boundary points map to the same chart position"));
+                }
+                handles.insert(i, handle);
+                hint = Some(handle);
+            }
+        }
+        if cdt.num_inner_faces() == 0 {
+            return Err(err("the boundary encloses no area in the chart"));
+        }
+
+        for lp in &loops {
+            for (k, &a) in lp.iter().enumerate() {
+                let b = lp[(k + 1) % lp.len()];
+                let (Some(&ha), Some(&hb)) = (handles.get(&a), handles.get(&b)) else {
+                    return Err(err("a boundary loop refers to a missing point"));
+                };
+                if cdt.exists_constraint(ha, hb) {
+                    return Err(err("a boundary edge is used twice"));
+                }
+                if !cdt.can_add_constraint(ha, hb) {
+                    return Err(err("boundary loops cross"));
+                }
+                cdt.try_add_constraint(ha, hb);
+                if !cdt.exists_constraint(ha, hb) {
+                    return Err(err("a boundary point lies on another boundary edge"));
+                }
+            }
+        }
+
+        let inside = flood_fill(&cdt).ok_or_else(|| err("the boundary loops are inconsistent"))?;
+        let mut any_inside = false;
+        for face in cdt.fixed_inner_faces() {
+            let flag = inside.get(face.index()).copied().unwrap_or(false);
+            any_inside |= flag;
+            *cdt.face_data_mut(face) = flag;
+        }
+        if !any_inside {
+            return Err(err("the boundary encloses no area in the chart"));
+        }
+
+        let count = cdt.num_vertices().max(1) as f64;
+        let flip = !plane_is_counter_clockwise(&chart, plane_sum / count)
+            .ok_or_else(|| err("its chart is degenerate"))?;
+        let region_cdt = RegionCdt {
+            chart,
+            cdt,
+            interior: Vec::new(),
+            flip,
+        };
+        region_cdt.check_sides(&loops, &handles, region)?;
+        Ok(region_cdt)
+    }
+
+    /// The region must lie on the left of its loops (seen against the signed normal); if most
+    /// loop edges see it on their right, the flood fill found the complement: the chart's pole
+    /// lies inside the region.
+    fn check_sides(
+        &self,
+        loops: &[Vec<u32>],
+        handles: &HashMap<u32, FixedVertexHandle>,
+        region: u32,
+    ) -> Result<(), RemeshError> {
+        let (mut agree, mut disagree) = (0usize, 0usize);
+        for lp in loops {
+            for (k, &a) in lp.iter().enumerate() {
+                let b = lp[(k + 1) % lp.len()];
+                let (Some(&ha), Some(&hb)) = (handles.get(&a), handles.get(&b)) else {
+                    continue;
+                };
+                let Some(edge) = self.cdt.get_edge_from_neighbors(ha, hb) else {
+                    continue;
+                };
+                // The face on the plane-left of a→b; in 3D it is on the left iff !flip.
+                let left_inside = edge.face().as_inner().is_some_and(|f| *f.data());
+                if left_inside != self.flip {
+                    agree += 1;
+                } else {
+                    disagree += 1;
+                }
+            }
+        }
+        if disagree > agree {
+            return Err(region_error(
+                region,
+                "the region lies on the right of its loops in its chart (the pole is inside it)",
+            ));
+        }
+        Ok(())
+    }
+
+    /// Inserts an interior vertex strictly inside an inside face (the caller checked it),
+    /// marks its star inside, returns its handle; `None` if spade refused it or found a
+    /// vertex already there.
+    fn insert_interior(
+        &mut self,
+        plane: DVec2,
+        point: DVec3,
+        hint: FixedVertexHandle,
+    ) -> Option<FixedVertexHandle> {
+        let index = u32::try_from(self.interior.len()).ok()?;
+        let before = self.cdt.num_vertices();
+        let vertex = Vertex {
+            position: to_point(plane),
+            point,
+            corner: Corner::Interior(index),
+            along: None,
+        };
+        let handle = self.cdt.insert_with_hint(vertex, hint).ok()?;
+        if self.cdt.num_vertices() == before {
+            return None;
+        }
+        self.interior.push(point);
+        let star: Vec<FixedFaceHandle<InnerTag>> = self
+            .cdt
+            .vertex(handle)
+            .out_edges()
+            .filter_map(|e| e.face().as_inner().map(|f| f.fix()))
+            .collect();
+        for face in star {
+            *self.cdt.face_data_mut(face) = true;
+        }
+        Some(handle)
+    }
+
+    /// The inside faces as triangles, oriented with the ellipsoid's signed normal.
+    fn finish(self) -> RegionMesh {
+        let triangles = self
+            .cdt
+            .inner_faces()
+            .filter(|f| *f.data())
+            .map(|f| {
+                let [a, b, c] = f.vertices().map(|v| v.data().corner);
+                if self.flip {
+                    [a, c, b]
+                } else {
+                    [a, b, c]
+                }
+            })
+            .collect();
+        RegionMesh {
+            interior: self.interior,
+            triangles,
+        }
+    }
+}
+
+/// The loops with their indices checked, consecutive repeats merged, and at least three
+/// distinct points each.
+fn clean_loops(input: &RegionInput) -> Result<Vec<Vec<u32>>, RemeshError> {
+    let err = |what| region_error(input.region, what);
+    if input.loops.is_empty() {
+        return Err(err(
+            "a region without boundary loops cannot be charted in the plane",
+        ));
+    }
+    let mut loops = Vec::with_capacity(input.loops.len());
+    for lp in input.loops {
+        let mut clean: Vec<u32> = Vec::with_capacity(lp.len());
+        for &i in lp {
+            if i as usize >= input.boundary.len() {
+                return Err(err("a boundary loop refers to a missing point"));
+            }
+            if clean.last() != Some(&i) {
+                clean.push(i);
+            }
+        }
+        while clean.len() > 1 && clean.first() == clean.last() {
+            clean.pop();
+        }
+        if clean.len() < 3 {
+            return Err(err("a boundary loop has fewer than three distinct points"));
+        }
+        loops.push(clean);
+    }
+    Ok(loops)
+}
+
+/// Inside/outside per face index: a breadth-first flood fill from the outer face that toggles
+/// across constraint edges. `None` if some face is reached with both states (loops that do not
+/// bound a region).
+fn flood_fill(cdt: &Cdt) -> Option<Vec<bool>> {
+    let mut state: Vec<Option<bool>> = vec![None; cdt.num_all_faces()];
+    let mut queue: VecDeque<(FixedFaceHandle<InnerTag>, bool)> = VecDeque::new();
+    for edge in cdt.convex_hull() {
+        let across = edge.rev().face().as_inner().or(edge.face().as_inner());
+        if let Some(face) = across {
+            queue.push_back((face.fix(), edge.is_constraint_edge()));
+        }
+    }
+    while let Some((face, inside)) = queue.pop_front() {
+        let slot = state.get_mut(face.index())?;
+        match *slot {
+            Some(s) if s != inside => return None,
+            Some(_) => continue,
+            None => *slot = Some(inside),
+        }
+        for edge in cdt.face(face).adjacent_edges() {
+            if let Some(next) = edge.rev().face().as_inner() {
+                queue.push_back((next.fix(), inside != edge.is_constraint_edge()));
+            }
+        }
+    }
+    Some(state.into_iter().map(|s| s == Some(true)).collect())
+}
+
+/// Whether the chart maps counter-clockwise plane triangles to counter-clockwise triangles
+/// about the ellipsoid's signed normal, checked with the 3D normal of a small plane triangle
+/// at `q` (the map is conformal, so the answer is the same everywhere); `None` if degenerate.
+fn plane_is_counter_clockwise(chart: &RegionChart, q: DVec2) -> Option<bool> {
+    let h = 1e-4 * (1.0 + q.length());
+    let p0 = chart.from_plane(q);
+    let px = chart.from_plane(q + DVec2::new(h, 0.0));
+    let py = chart.from_plane(q + DVec2::new(0.0, h));
+    let s = (px - p0).cross(py - p0).dot(chart.ellipsoid.normal(p0));
+    (s.is_finite() && s != 0.0).then_some(s > 0.0)
+}
+
+/// A face worth splitting: its error, its corners (to check it still exists), and the point
+/// that would split it.
+#[derive(Debug, Clone, Copy)]
+struct Candidate {
+    error: f64,
+    corners: [FixedVertexHandle; 3],
+    plane: DVec2,
+    point: DVec3,
+}
+
+impl PartialEq for Candidate {
+    fn eq(&self, other: &Self) -> bool {
+        self.cmp(other) == Ordering::Equal
+    }
+}
+
+impl Eq for Candidate {}
+
+impl PartialOrd for Candidate {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for Candidate {
+    fn cmp(&self, other: &Self) -> Ordering {
+        self.error
+            .total_cmp(&other.error)
+            .then_with(|| other.corners.cmp(&self.corners))
+    }
+}
+
+/// Iterative vertex addition (section 5.3), the default decoder: the region's boundary in its
+/// chart, then repeatedly the inside face whose flat centroid is farthest from the ellipsoid
+/// (radially) is split at a new vertex on the ellipsoid.
+///
+/// The new vertex is the face's *plane* centroid mapped to the ellipsoid
+/// ([`RegionChart::from_plane`]): the plane centroid lies strictly inside the plane triangle
+/// (checked with spade's exact orientation predicate), hence inside the region, so the
+/// boundary is never split. The faces are kept in a max-heap with lazy invalidation (an entry
+/// is dropped when its three corners no longer form a face); an insertion pushes only the new
+/// vertex's star, so [`AdaptiveTriangulation::insert_worst`] costs O(log n) amortised plus
+/// spade's insertion near its hint.
+pub struct AdaptiveTriangulation {
+    inner: RegionCdt,
+    heap: BinaryHeap<Candidate>,
+    min_spacing: f64,
+}
+
+impl AdaptiveTriangulation {
+    /// The boundary-only triangulation of `input`, every inside face a candidate. A candidate
+    /// whose new vertex would lie closer than `min_spacing` (model units) to a corner of its
+    /// face is dropped, and its face never split.
+    ///
+    /// Errors ([`RemeshError::Region`]): no loops, a loop with fewer than three distinct
+    /// points or a missing index, non-finite points, two boundary points at the same chart
+    /// position, crossing loops, a boundary point on another boundary edge, an edge used
+    /// twice, a boundary enclosing no area, a region on the wrong side of its loops.
+    pub fn new(input: &RegionInput, min_spacing: f64) -> Result<Self, RemeshError> {
+        if !(min_spacing >= 0.0 && min_spacing.is_finite()) {
+            return Err(RemeshError::InvalidOption {
+                what: "min_spacing",
+                value: min_spacing.to_string(),
+            });
+        }
+        let inner = RegionCdt::new(input)?;
+        let mut this = AdaptiveTriangulation {
+            inner,
+            heap: BinaryHeap::new(),
+            min_spacing,
+        };
+        let faces: Vec<FixedFaceHandle<InnerTag>> = this
+            .inner
+            .cdt
+            .fixed_inner_faces()
+            .filter(|&f| *this.inner.cdt.face(f).data())
+            .collect();
+        for face in faces {
+            this.push_face(face);
+        }
+        Ok(this)
+    }
+
+    /// The radial distance (model units) of the worst face's flat centroid among the faces
+    /// that may still be split; `None` when none is left.
+    pub fn worst_error(&self) -> Option<f64> {
+        self.heap.peek().map(|c| c.error)
+    }
+
+    /// Splits the worst face; `false` when no candidate is left.
+    pub fn insert_worst(&mut self) -> bool {
+        while let Some(candidate) = self.heap.pop() {
+            if !self.is_current(&candidate) {
+                continue;
+            }
+            let Some(v) =
+                self.inner
+                    .insert_interior(candidate.plane, candidate.point, candidate.corners[0])
+            else {
+                continue;
+            };
+            let star: Vec<FixedFaceHandle<InnerTag>> = self
+                .inner
+                .cdt
+                .vertex(v)
+                .out_edges()
+                .filter_map(|e| e.face().as_inner().map(|f| f.fix()))
+                .collect();
+            for face in star {
+                self.push_face(face);
+            }
+            self.drop_stale_top();
+            return true;
+        }
+        false
+    }
+
+    /// Interior vertices inserted so far.
+    pub fn added(&self) -> usize {
+        self.inner.interior.len()
+    }
+
+    /// The region's triangles.
+    pub fn finish(self) -> RegionMesh {
+        self.inner.finish()
+    }
+
+    /// Pops stale entries so that the top (what [`Self::worst_error`] reports) is a face.
+    fn drop_stale_top(&mut self) {
+        while let Some(top) = self.heap.peek() {
+            if self.is_current(top) {
+                break;
+            }
+            self.heap.pop();
+        }
+    }
+
+    /// Whether the candidate's corners still form an inside face.
+    fn is_current(&self, candidate: &Candidate) -> bool {
+        let [a, b, c] = candidate.corners;
+        self.inner
+            .cdt
+            .get_edge_from_neighbors(a, b)
+            .is_some_and(|e| e.face().as_inner().is_some() && e.next().to().fix() == c)
+    }
+
+    /// Pushes the face's candidate, unless its split point is too close to a corner or not
+    /// strictly inside it.
+    fn push_face(&mut self, face: FixedFaceHandle<InnerTag>) {
+        let chart = &self.inner.chart;
+        let face = self.inner.cdt.face(face);
+        let vertices = face.vertices();
+        let [pa, pb, pc] = vertices.map(|v| v.data().point);
+        let error = chart.ellipsoid.radial_distance((pa + pb + pc) / 3.0);
+        if !error.is_finite() {
+            return;
+        }
+        let [qa, qb, qc] = face.positions().map(|p| DVec2::new(p.x, p.y));
+        let plane = (qa + qb + qc) / 3.0;
+        if !is_valid_plane_point(plane) {
+            return;
+        }
+        let q = to_point(plane);
+        if !face
+            .adjacent_edges()
+            .iter()
+            .all(|e| e.side_query(q).is_on_left_side())
+        {
+            return;
+        }
+        let clear = vertices.iter().all(|v| {
+            let corner = DVec2::new(v.position().x, v.position().y);
+            v.data().along.is_none_or(|along| {
+                along.iter().all(|&other| {
+                    distance_to_segment(plane, corner, other)
+                        >= BOUNDARY_CLEARANCE * corner.distance(other)
+                })
+            })
+        });
+        if !clear {
+            return;
+        }
+        let point = chart.from_plane(plane);
+        let spacing = self
+            .min_spacing
+            .max(SPACING_FLOOR * chart.ellipsoid.radii.max_element());
+        if !point.is_finite() || [pa, pb, pc].iter().any(|p| p.distance(point) < spacing) {
+            return;
+        }
+        let corners = vertices.map(|v| v.fix());
+        self.heap.push(Candidate {
+            error,
+            corners,
+            plane,
+            point,
+        });
+    }
+}
+
+/// Below this fraction of the largest radius two vertices count as one: a split point that
+/// close to a corner is never inserted, whatever `min_spacing` says.
+const SPACING_FLOOR: f64 = 1e-9;
+
+/// A split point must lie at least this fraction of a boundary edge's chart length away from
+/// it. Boundary edges are chords that interior vertices cannot improve: without a clearance
+/// the worst faces along a coarse boundary would be split again and again, their new vertices
+/// converging onto the edge (slivers whose error never drops). The centroid of a face whose
+/// apex lies half an edge length from it is 1/6 of the length away, so faces along the
+/// boundary are split until their apex is about that close, and no further.
+const BOUNDARY_CLEARANCE: f64 = 0.15;
+
+/// Distance from `p` to the segment `a`–`b`.
+fn distance_to_segment(p: DVec2, a: DVec2, b: DVec2) -> f64 {
+    let ab = b - a;
+    let len2 = ab.length_squared();
+    let t = if len2 > 0.0 {
+        ((p - a).dot(ab) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    p.distance(a + ab * t)
+}
+
+/// The parametric scheme (section 5.2): `interior_vertices` is a target, not exact.
+///
+/// Work in progress: this first version returns the boundary-only triangulation (no interior
+/// vertices).
+pub fn triangulate_parametric(
+    input: &RegionInput,
+    interior_vertices: usize,
+) -> Result<RegionMesh, RemeshError> {
+    let _ = interior_vertices;
+    Ok(RegionCdt::new(input)?.finish())
 }

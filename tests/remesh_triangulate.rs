@@ -1,0 +1,420 @@
+//! One region's triangulation (issue 6, items 3 and 4): iterative vertex addition
+//! (Simari & Singh 2005, section 5.3) and the parametric grid (section 5.2) on spherical caps,
+//! annuli, negative ellipsoids, regions decoded from real `.ellip` files, and hostile input.
+
+use ellip::ellipsoid::{Ellipsoid, Sign};
+use ellip::remesh::chart::RegionChart;
+use ellip::remesh::triangulate::{
+    triangulate_parametric, AdaptiveTriangulation, Corner, RegionInput, RegionMesh,
+};
+use ellip::remesh::RemeshError;
+use glam::{DQuat, DVec3};
+use std::collections::HashMap;
+
+/// A region's data owned together: boundary points, loops, chart.
+struct Region {
+    chart: RegionChart,
+    boundary: Vec<DVec3>,
+    loops: Vec<Vec<u32>>,
+}
+
+impl Region {
+    fn input(&self) -> RegionInput<'_> {
+        RegionInput {
+            region: 0,
+            chart: &self.chart,
+            boundary: &self.boundary,
+            loops: &self.loops,
+        }
+    }
+}
+
+/// A tilted ellipsoid (so that no axis is special) with the given sign.
+fn ellipsoid(sign: Sign) -> Ellipsoid {
+    Ellipsoid {
+        center: DVec3::new(0.5, -1.0, 2.0),
+        rotation: DQuat::from_euler(glam::EulerRot::XYZ, 0.4, -0.7, 1.2),
+        radii: DVec3::new(2.0, 1.0, 1.5),
+        sign,
+    }
+}
+
+/// `n` points of the ellipsoid's image of the circle of latitude at polar angle `theta`
+/// (around local +z), with increasing azimuth.
+fn circle(e: &Ellipsoid, theta: f64, n: usize) -> Vec<DVec3> {
+    (0..n)
+        .map(|k| {
+            let phi = k as f64 / n as f64 * std::f64::consts::TAU;
+            e.from_unit_sphere(DVec3::new(
+                theta.sin() * phi.cos(),
+                theta.sin() * phi.sin(),
+                theta.cos(),
+            ))
+        })
+        .collect()
+}
+
+/// Whether increasing azimuth around local +z is counter-clockwise seen against the mesh's
+/// outward normal (the ellipsoid's signed normal): true for positive ellipsoids.
+fn ccw(e: &Ellipsoid) -> bool {
+    e.sign == Sign::Positive
+}
+
+/// The cap θ < `theta` around local +z, its loop with the region on its left, the chart's pole
+/// at local −z.
+fn cap(e: &Ellipsoid, theta: f64, n: usize) -> Region {
+    let boundary = circle(e, theta, n);
+    let mut lp: Vec<u32> = (0..n as u32).collect();
+    if !ccw(e) {
+        lp.reverse();
+    }
+    Region {
+        chart: RegionChart::with_pole(e, DVec3::NEG_Z),
+        boundary,
+        loops: vec![lp],
+    }
+}
+
+/// The annulus `inner` < θ < `outer` around local +z (a region with a hole), pole at −z.
+fn annulus(e: &Ellipsoid, inner: f64, outer: f64, n: usize) -> Region {
+    let mut boundary = circle(e, outer, n);
+    boundary.extend(circle(e, inner, n / 2));
+    let mut outer_loop: Vec<u32> = (0..n as u32).collect();
+    let mut hole: Vec<u32> = (n as u32..(n + n / 2) as u32).rev().collect();
+    if !ccw(e) {
+        outer_loop.reverse();
+        hole.reverse();
+    }
+    Region {
+        chart: RegionChart::with_pole(e, DVec3::NEG_Z),
+        boundary,
+        loops: vec![outer_loop, hole],
+    }
+}
+
+fn position(region: &Region, mesh: &RegionMesh, c: Corner) -> DVec3 {
+    match c {
+        Corner::Boundary(i) => region.boundary[i as usize],
+        Corner::Interior(j) => mesh.interior[j as usize],
+    }
+}
+
+fn corners(region: &Region, mesh: &RegionMesh, t: &[Corner; 3]) -> [DVec3; 3] {
+    t.map(|c| position(region, mesh, c))
+}
+
+/// Checks what every region mesh must satisfy and returns its Euler characteristic:
+/// every triangle has positive area (relative 1e-12 of the squared bounding size) and its 3D
+/// normal within 90° of the ellipsoid's signed normal at its centroid; every directed edge
+/// occurs at most once, every boundary-loop edge exactly once in the loop's direction, every
+/// other edge exactly twice in opposite directions; interior vertices lie on the ellipsoid
+/// (radial distance < 1e-9) and are all used.
+fn check_mesh(region: &Region, mesh: &RegionMesh) -> i64 {
+    let e = &region.chart.ellipsoid;
+    assert!(!mesh.triangles.is_empty());
+    let scale = e.radii.max_element();
+    let mut directed: HashMap<(Corner, Corner), usize> = HashMap::new();
+    for t in &mesh.triangles {
+        let [a, b, c] = corners(region, mesh, t);
+        let n = (b - a).cross(c - a);
+        assert!(
+            n.length() > 1e-12 * scale * scale,
+            "degenerate {t:?}: {a} {b} {c} area {}",
+            n.length()
+        );
+        let centroid = (a + b + c) / 3.0;
+        assert!(
+            n.dot(e.normal(centroid)) > 0.0,
+            "triangle {t:?} against the normal"
+        );
+        for k in 0..3 {
+            *directed.entry((t[k], t[(k + 1) % 3])).or_default() += 1;
+        }
+    }
+    let mut loop_edges = std::collections::HashSet::new();
+    for lp in &region.loops {
+        for k in 0..lp.len() {
+            let edge = (
+                Corner::Boundary(lp[k]),
+                Corner::Boundary(lp[(k + 1) % lp.len()]),
+            );
+            assert_eq!(directed.get(&edge), Some(&1), "boundary edge {edge:?}");
+            assert_eq!(
+                directed.get(&(edge.1, edge.0)),
+                None,
+                "boundary edge {edge:?}"
+            );
+            loop_edges.insert(edge);
+        }
+    }
+    for (&(a, b), &count) in &directed {
+        assert_eq!(count, 1, "edge {a:?}→{b:?} repeated");
+        if !loop_edges.contains(&(a, b)) {
+            assert_eq!(directed.get(&(b, a)), Some(&1), "edge {a:?}→{b:?} unpaired");
+        }
+    }
+    let mut vertices = std::collections::HashSet::new();
+    for t in &mesh.triangles {
+        vertices.extend(t.iter().copied());
+    }
+    for (j, p) in mesh.interior.iter().enumerate() {
+        assert!(
+            e.radial_distance(*p) < 1e-9 * scale,
+            "interior {j} off the ellipsoid"
+        );
+        assert!(
+            vertices.contains(&Corner::Interior(j as u32)),
+            "interior {j} unused"
+        );
+    }
+    let undirected = (directed.len() + loop_edges.len()) / 2;
+    vertices.len() as i64 - undirected as i64 + mesh.triangles.len() as i64
+}
+
+/// Radial errors of `samples` barycentric points per triangle (a fixed pattern including the
+/// centroid): (max, RMS).
+fn sampled_error(region: &Region, mesh: &RegionMesh) -> (f64, f64) {
+    const WEIGHTS: [[f64; 3]; 7] = [
+        [1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0],
+        [0.6, 0.2, 0.2],
+        [0.2, 0.6, 0.2],
+        [0.2, 0.2, 0.6],
+        [0.5, 0.5, 0.0],
+        [0.0, 0.5, 0.5],
+        [0.5, 0.0, 0.5],
+    ];
+    let e = &region.chart.ellipsoid;
+    let (mut max, mut sum, mut count) = (0.0f64, 0.0, 0usize);
+    for t in &mesh.triangles {
+        let [a, b, c] = corners(region, mesh, t);
+        for w in WEIGHTS {
+            let d = e.radial_distance(a * w[0] + b * w[1] + c * w[2]);
+            max = max.max(d);
+            sum += d * d;
+            count += 1;
+        }
+    }
+    (max, (sum / count as f64).sqrt())
+}
+
+/// Adaptive triangulation with exactly `n` insertions (asserted).
+fn adaptive(region: &Region, n: usize) -> RegionMesh {
+    let mut tri = AdaptiveTriangulation::new(&region.input(), 0.0).expect("triangulates");
+    for k in 0..n {
+        assert!(tri.insert_worst(), "ran out of candidates at {k}");
+    }
+    assert_eq!(tri.added(), n);
+    tri.finish()
+}
+
+/// Refines with 0, 30, …, 1920 vertices: the mesh stays valid with the given Euler
+/// characteristic; the sampled RMS radial error falls by at least 1.5× per 4× vertices and
+/// the max never grows (it ends bounded below by the boundary chords' sag).
+fn check_refinement(region: &Region, euler: i64) {
+    let (mut previous_max, mut previous_rms) = (f64::INFINITY, f64::INFINITY);
+    for n in [0, 30, 120, 480, 1920] {
+        let mesh = adaptive(region, n);
+        assert_eq!(mesh.interior.len(), n);
+        assert_eq!(
+            check_mesh(region, &mesh),
+            euler,
+            "Euler characteristic at n = {n}"
+        );
+        let (max, rms) = sampled_error(region, &mesh);
+        println!("n = {n}: max {max:.3e}, rms {rms:.3e}");
+        assert!(
+            max <= previous_max,
+            "max error {max} grew from {previous_max}"
+        );
+        assert!(
+            rms * 1.5 < previous_rms,
+            "rms error {rms} after {previous_rms}"
+        );
+        (previous_max, previous_rms) = (max, rms);
+    }
+}
+
+#[test]
+fn cap_refines_to_a_disc_with_decreasing_error() {
+    let e = ellipsoid(Sign::Positive);
+    check_refinement(&cap(&e, 1.2, 64), 1);
+}
+
+#[test]
+fn cap_on_a_negative_ellipsoid_flips_orientation() {
+    let e = ellipsoid(Sign::Negative);
+    let region = cap(&e, 1.2, 64);
+    check_refinement(&region, 1);
+    // The same triangles as on the positive ellipsoid, reversed.
+    let positive = cap(&ellipsoid(Sign::Positive), 1.2, 64);
+    let a = adaptive(&positive, 100);
+    let b = adaptive(&region, 100);
+    assert_eq!(a.triangles.len(), b.triangles.len());
+}
+
+#[test]
+fn annulus_has_euler_characteristic_zero() {
+    for sign in [Sign::Positive, Sign::Negative] {
+        let e = ellipsoid(sign);
+        check_refinement(&annulus(&e, 0.5, 1.4, 48), 0);
+    }
+}
+
+#[test]
+fn insertion_stops_on_tolerance() {
+    let e = ellipsoid(Sign::Positive);
+    let region = cap(&e, 1.0, 40);
+    let mut tri = AdaptiveTriangulation::new(&region.input(), 0.0).unwrap();
+    let tolerance = 1e-3;
+    let first = tri.worst_error().unwrap();
+    assert!(first > tolerance);
+    while tri.worst_error().is_some_and(|w| w > tolerance) {
+        assert!(tri.insert_worst());
+    }
+    assert!(tri.worst_error().is_some_and(|w| w <= tolerance));
+    let added = tri.added();
+    let mesh = tri.finish();
+    // Away from the boundary every face centroid is within tolerance; faces touching it keep
+    // part of the boundary chords' sag (interior vertices cannot move a chord): at most 3× the
+    // largest chord midpoint's radial distance.
+    let lp = &region.loops[0];
+    let sag = (0..lp.len())
+        .map(|k| {
+            let a = region.boundary[lp[k] as usize];
+            let b = region.boundary[lp[(k + 1) % lp.len()] as usize];
+            e.radial_distance((a + b) / 2.0)
+        })
+        .fold(0.0, f64::max);
+    let (mut inner, mut near) = (0.0f64, 0.0f64);
+    for t in &mesh.triangles {
+        let [a, b, c] = corners(&region, &mesh, t);
+        let d = e.radial_distance((a + b + c) / 3.0);
+        if t.iter().any(|c| matches!(c, Corner::Boundary(_))) {
+            near = near.max(d);
+        } else {
+            inner = inner.max(d);
+        }
+    }
+    println!(
+        "tolerance {tolerance}: {added} vertices, first error {first:.3e}, interior faces \
+         {inner:.3e}, boundary faces {near:.3e}, chord sag {sag:.3e}"
+    );
+    assert!(inner <= tolerance, "interior face error {inner}");
+    assert!(
+        near <= tolerance.max(3.0 * sag),
+        "boundary face error {near}"
+    );
+    assert!(added > 10 && added < 5000, "{added}");
+}
+
+/// The error a region input produces with both schemes (which must agree).
+fn region_error(region: &Region) -> &'static str {
+    let adaptive = AdaptiveTriangulation::new(&region.input(), 0.0).err();
+    let parametric = triangulate_parametric(&region.input(), 100).err();
+    match (adaptive, parametric) {
+        (Some(RemeshError::Region { what, .. }), Some(RemeshError::Region { what: w2, .. })) => {
+            assert_eq!(what, w2);
+            what
+        }
+        other => panic!("expected region errors, got {other:?}"),
+    }
+}
+
+#[test]
+fn hostile_boundaries_are_typed_errors() {
+    let e = ellipsoid(Sign::Positive);
+    let good = cap(&e, 1.0, 16);
+
+    // Two loops that cross: the cap and a shifted copy of it.
+    let mut crossing = cap(&e, 1.0, 16);
+    let shifted: Vec<DVec3> = circle(&e, 1.0, 16)
+        .iter()
+        .map(|p| e.from_unit_sphere((e.to_unit_sphere(*p) + DVec3::new(0.3, 0.0, 0.0)).normalize()))
+        .collect();
+    crossing.boundary.extend(shifted);
+    crossing.loops.push((16..32).collect());
+    assert_eq!(region_error(&crossing), "boundary loops cross");
+
+    // NaN and infinite coordinates.
+    for bad in [f64::NAN, f64::INFINITY] {
+        let mut r = cap(&e, 1.0, 16);
+        r.boundary[3].y = bad;
+        assert_eq!(region_error(&r), "a boundary point is not finite");
+    }
+
+    // A loop of two points; a loop that repeats one point.
+    let mut two = cap(&e, 1.0, 16);
+    two.loops = vec![vec![0, 5]];
+    assert_eq!(
+        region_error(&two),
+        "a boundary loop has fewer than three distinct points"
+    );
+    let mut same = cap(&e, 1.0, 16);
+    same.loops = vec![vec![4, 4, 4, 4]];
+    assert_eq!(
+        region_error(&same),
+        "a boundary loop has fewer than three distinct points"
+    );
+
+    // A missing index.
+    let mut missing = cap(&e, 1.0, 16);
+    missing.loops[0][2] = 99;
+    assert_eq!(
+        region_error(&missing),
+        "a boundary loop refers to a missing point"
+    );
+
+    // Two different boundary points at the same position.
+    let mut duplicate = cap(&e, 1.0, 16);
+    duplicate.boundary[7] = duplicate.boundary[6];
+    assert_eq!(
+        region_error(&duplicate),
+        "two boundary points map to the same chart position"
+    );
+
+    // The same index twice in a row is merged, not an error.
+    let mut repeated = cap(&e, 1.0, 16);
+    let third = repeated.loops[0][3];
+    repeated.loops[0].insert(3, third);
+    let mesh = adaptive(&repeated, 10);
+    assert_eq!(check_mesh(&good, &mesh), 1);
+
+    // A loop visiting a point twice (a figure eight's edges reused): an edge used twice.
+    let mut twice = cap(&e, 1.0, 16);
+    let lp = twice.loops[0].clone();
+    twice.loops.push(lp);
+    assert_eq!(region_error(&twice), "a boundary edge is used twice");
+
+    // Collinear boundary (all points on one great circle through the pole's antipode).
+    let mut flat = cap(&e, 1.0, 16);
+    flat.boundary = (0..16)
+        .map(|k| {
+            e.from_unit_sphere(DVec3::new(
+                (k as f64 * 0.01).sin(),
+                0.0,
+                -(k as f64 * 0.01).cos(),
+            ))
+        })
+        .collect();
+    let what = region_error(&flat);
+    assert!(!what.is_empty());
+
+    // No loops at all.
+    let mut none = cap(&e, 1.0, 16);
+    none.loops.clear();
+    assert!(!region_error(&none).is_empty());
+
+    // A region on the wrong side of its loop (the loop reversed: the pole is inside it).
+    let mut reversed = cap(&e, 1.0, 16);
+    reversed.loops[0].reverse();
+    assert_eq!(
+        region_error(&reversed),
+        "the region lies on the right of its loops in its chart (the pole is inside it)"
+    );
+
+    // A NaN min_spacing is an invalid option.
+    assert!(matches!(
+        AdaptiveTriangulation::new(&good.input(), f64::NAN),
+        Err(RemeshError::InvalidOption { .. })
+    ));
+}
