@@ -101,6 +101,9 @@ pub fn refine_arcs(rep: &Representation, settings: &RefineSettings) -> RefinedBo
             };
             split.segment(a, b, 0);
         }
+        if let Some(right) = right {
+            prune_double_ears(&mut chain, &points, arc.closed, left, right);
+        }
         arcs.push(chain);
     }
     let added = points.len() - rep.points.len();
@@ -108,6 +111,68 @@ pub fn refine_arcs(rep: &Representation, settings: &RefineSettings) -> RefinedBo
         points,
         arcs,
         added,
+    }
+}
+
+/// Whether the corner `a → b → c` turns towards the region on its left, as that region's
+/// chart sees it: the orientation of the three points' radial projections on `e` (what
+/// the stereographic projection preserves), seen with the mesh's outward normal up.
+fn turns_left(e: &Ellipsoid, a: DVec3, b: DVec3, c: DVec3) -> bool {
+    let (u, v, w) = (a - e.center, b - e.center, c - e.center);
+    e.sign.factor() * u.dot(v.cross(w)) > 0.0
+}
+
+/// Removes the chain points at which both regions see a convex corner.
+///
+/// Boundary points need not lie on either ellipsoid, and each region's chart projects them
+/// radially from its own centre: at a nearly straight point the two charts can disagree on
+/// which side the corner bends to. When both see it bending away from them, the thin
+/// triangle (previous, point, next) would be inside both regions and the glued mesh would
+/// not be manifold. Dropping the point (from the one chain both regions use) removes the
+/// conflict; it is nearly on the chord of its neighbours. Junctions stay.
+fn prune_double_ears(
+    chain: &mut Vec<u32>,
+    points: &[DVec3],
+    closed: bool,
+    left: &Ellipsoid,
+    right: &Ellipsoid,
+) {
+    let at = |i: u32| points.get(i as usize).copied().unwrap_or_default();
+    let conflict = |a: u32, b: u32, c: u32| {
+        let (a, b, c) = (at(a), at(b), at(c));
+        turns_left(left, a, b, c) && turns_left(right, c, b, a)
+    };
+    // One scan with backtracking: after a removal the previous point is checked again.
+    let mut kept: Vec<u32> = Vec::with_capacity(chain.len());
+    for &next in chain.iter() {
+        while kept.len() >= 2 {
+            let (a, b) = (kept[kept.len() - 2], kept[kept.len() - 1]);
+            if conflict(a, b, next) {
+                kept.pop();
+            } else {
+                break;
+            }
+        }
+        kept.push(next);
+    }
+    if closed {
+        // The corners across the seam (first point kept as the loop's anchor).
+        let mut guard = kept.len();
+        while kept.len() > 3 && guard > 0 {
+            guard -= 1;
+            let n = kept.len();
+            if conflict(kept[n - 2], kept[n - 1], kept[0]) {
+                kept.pop();
+            } else if conflict(kept[n - 1], kept[0], kept[1]) && n > 3 {
+                kept.remove(0);
+            } else {
+                break;
+            }
+        }
+    }
+    let min_len = if closed { 3 } else { 2 };
+    if kept.len() >= min_len {
+        *chain = kept;
     }
 }
 
