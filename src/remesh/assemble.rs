@@ -1,14 +1,851 @@
 //! The regions joined into one mesh: shared boundary vertices, outward orientation, analytic
-//! normals.
+//! normals (issue 6, items 2, 6 and 7).
+//!
+//! 1. **Budget and spacing.** The total vertex budget N ([`RemeshOptions::budget`]) and an
+//!    estimate A of the total surface area give the target edge length
+//!    h = √(2A / (√3·N)) of an equilateral mesh with N vertices, used both for the boundary
+//!    ([`super::refine`]) and as the interiors' scale.
+//! 2. **One vertex pool.** The refined boundary points, each once (pool points at exactly
+//!    the same position are merged); every region's loops refer to it, so neighbouring
+//!    regions share their boundary vertices and the mesh is watertight.
+//! 3. **Regions.** A region with cycles is triangulated in its chart (section 5.1). A region
+//!    without cycles is a whole ellipsoid: it is cut along its local equator (shared points,
+//!    like an arc) and each half is triangulated in its own chart.
+//! 4. **Budget shared by error.** Adaptive (section 5.3, the default): a max-heap of the
+//!    regions keyed by their worst face error; the worst region gets the next vertex, until
+//!    the budget is spent or every region is within the tolerance. Parametric (section 5.2):
+//!    the interior budget shared by area.
+//! 5. **Join.** Boundary corners map to the pool, interior corners to new vertices; vertex
+//!    normals are the analytic signed normals ([`Ellipsoid::normal`]) averaged over the
+//!    regions a vertex touches; then [`check_mesh`] counts degenerate and flipped triangles
+//!    and reads closedness off the topology.
+//!
+//! The tolerance's bounding box is that of the boundary points and of the whole-ellipsoid
+//! regions (the part of the output the file pins down before any interior is meshed).
 
-use super::{RemeshError, RemeshOptions, Remeshed};
-use crate::representation::Representation;
+use super::chart::RegionChart;
+use super::refine::{refine_arcs, RefineSettings};
+use super::triangulate::{
+    triangulate_parametric, AdaptiveTriangulation, Corner, RegionInput, RegionMesh,
+};
+use super::{RemeshError, RemeshOptions, Remeshed, Scheme};
+use crate::ellipsoid::Ellipsoid;
+use crate::mesh::Mesh;
+use crate::representation::{Representation, Side};
+use glam::DVec3;
+use std::cmp::Ordering;
+use std::collections::{BinaryHeap, HashMap};
 
-/// Remeshes every region and joins them (see [`super::remesh`]).
+/// Fewest points on the equator of a whole-ellipsoid region.
+const MIN_EQUATOR_POINTS: usize = 8;
+
+/// A triangle whose area is below this fraction of the squared bounding-box diagonal counts
+/// as degenerate (f32 output cannot tell it from a zero-area one).
+pub const DEGENERATE_AREA: f64 = 1e-14;
+
+/// What [`check_mesh`] measured on an assembled mesh.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+pub struct MeshCheck {
+    /// Triangles with (near) zero area ([`DEGENERATE_AREA`]).
+    pub degenerate: usize,
+    /// Triangles whose normal disagrees with their ellipsoid's signed normal at their
+    /// centroid.
+    pub flipped: usize,
+    /// Every edge has exactly two faces.
+    pub closed: bool,
+    /// No edge with more than two faces, every vertex a single fan.
+    pub manifold: bool,
+    /// No edge run the same way by its two faces.
+    pub consistently_oriented: bool,
+    /// Loops of border edges.
+    pub border_loops: usize,
+    /// Whether the representation has arcs on the mesh border (when it has none, the mesh
+    /// should be closed).
+    pub has_border_arcs: bool,
+}
+
+impl MeshCheck {
+    /// Whether the mesh has every property it should: no degenerate or flipped triangle,
+    /// manifold and consistently oriented, and closed unless the representation has border
+    /// arcs.
+    pub fn is_clean(&self) -> bool {
+        self.degenerate == 0
+            && self.flipped == 0
+            && self.manifold
+            && self.consistently_oriented
+            && (self.closed || self.has_border_arcs)
+    }
+}
+
+/// Remeshes every region and joins them (see [`super::remesh`] and the module doc).
 pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshed, RemeshError> {
-    let _ = (rep, options);
-    Err(RemeshError::InvalidOption {
-        what: "remesh",
-        value: "not implemented yet".into(),
+    rep.validate()?;
+    options.validate()?;
+    let budget = options.budget(rep);
+    let areas = estimate_areas(rep)?;
+    let total_area: f64 = areas.iter().sum();
+    let spacing = (2.0 * total_area / (3f64.sqrt() * budget as f64)).sqrt();
+    if !(spacing.is_finite() && spacing > 0.0) {
+        return Err(RemeshError::Geometry {
+            what: "surface area or vertex spacing not finite",
+        });
+    }
+    let diagonal = reference_diagonal(rep);
+    if !diagonal.is_finite() {
+        return Err(RemeshError::Geometry {
+            what: "bounding box not finite",
+        });
+    }
+    let tolerance = options.tolerance.map(|t| t * diagonal);
+
+    let minimum = rep.points.len() + MIN_EQUATOR_POINTS * whole_regions(rep).count();
+    if minimum > options.max_vertices {
+        return Err(RemeshError::TooManyVertices {
+            needed: minimum,
+            max: options.max_vertices,
+        });
+    }
+    let settings = RefineSettings {
+        spacing,
+        tolerance: tolerance.unwrap_or(spacing / 16.0),
+        max_new_points: (budget / 4).min(options.max_vertices - minimum),
+    };
+    let plan = Plan {
+        rep,
+        options,
+        budget,
+        spacing,
+        tolerance,
+        areas: &areas,
+    };
+    match plan.mesh(&settings) {
+        // Refined points off the stored polyline can make loops cross where arcs meet at
+        // sharp angles or where the fitted ellipsoids meet far from the stored boundary: the
+        // stored boundary alone is then the safer input.
+        Err(RemeshError::Region { .. }) if settings.max_new_points > 0 => {
+            plan.mesh(&RefineSettings {
+                max_new_points: 0,
+                ..settings
+            })
+        }
+        result => result,
+    }
+}
+
+/// What every attempt at meshing shares.
+struct Plan<'a> {
+    rep: &'a Representation,
+    options: &'a RemeshOptions,
+    budget: usize,
+    spacing: f64,
+    tolerance: Option<f64>,
+    areas: &'a [f64],
+}
+
+impl Plan<'_> {
+    /// Refines the arcs with `settings`, triangulates every piece and joins them.
+    fn mesh(&self, settings: &RefineSettings) -> Result<Remeshed, RemeshError> {
+        let Plan {
+            rep,
+            options,
+            budget,
+            spacing,
+            tolerance,
+            areas,
+        } = *self;
+        let refined = refine_arcs(rep, settings);
+        let mut pool = Pool::new(&refined.points);
+        let mut pieces = Vec::with_capacity(rep.region_count());
+        for (r, cycles) in rep.cycles.iter().enumerate() {
+            let region = r as u32;
+            let Some(ellipsoid) = rep.ellipsoids.get(r) else {
+                continue;
+            };
+            let area = areas.get(r).copied().unwrap_or(0.0);
+            if cycles.is_empty() {
+                let equator_budget = options.max_vertices.saturating_sub(pool.positions.len());
+                let halves = split_whole(region, ellipsoid, spacing, equator_budget, &mut pool)?;
+                pieces.extend(halves.map(|mut p| {
+                    p.area = area / 2.0;
+                    p
+                }));
+                continue;
+            }
+            let mut loops = Vec::with_capacity(cycles.len());
+            for cycle in cycles {
+                let mut lp = Vec::new();
+                for r in &cycle.arcs {
+                    let Some(chain) = refined.arcs.get(r.arc as usize) else {
+                        continue;
+                    };
+                    let closed = rep.arcs.get(r.arc as usize).is_some_and(|a| a.closed);
+                    let ids: Vec<u32> = if r.reversed {
+                        chain.iter().rev().map(|&i| pool.id(i)).collect()
+                    } else {
+                        chain.iter().map(|&i| pool.id(i)).collect()
+                    };
+                    // Consecutive open arcs share their junction: skip each one's first point.
+                    lp.extend(ids.into_iter().skip(usize::from(!closed)));
+                }
+                let lp = without_repeats(lp);
+                if lp.len() < 3 {
+                    return Err(RemeshError::Region {
+                        region,
+                        what: "a boundary loop has fewer than three distinct points",
+                    });
+                }
+                loops.push(lp);
+            }
+            let loop_points: Vec<Vec<DVec3>> = loops
+                .iter()
+                .map(|l| l.iter().map(|&v| pool.position(v)).collect())
+                .collect();
+            let chart = RegionChart::new(region, ellipsoid, &loop_points)?;
+            pieces.push(Piece::new(region, chart, &loops, &pool.positions, area));
+        }
+        if pool.positions.len() > options.max_vertices {
+            return Err(RemeshError::TooManyVertices {
+                needed: pool.positions.len(),
+                max: options.max_vertices,
+            });
+        }
+
+        let meshes = match options.scheme {
+            Scheme::Adaptive => {
+                triangulate_adaptive(&pieces, pool.positions.len(), budget, tolerance, spacing)?
+            }
+            Scheme::Parametric => triangulate_by_area(&pieces, pool.positions.len(), budget)?,
+        };
+        join(rep, pool.positions, &pieces, meshes)
+    }
+}
+
+/// Regions without cycles: whole ellipsoids.
+fn whole_regions(rep: &Representation) -> impl Iterator<Item = usize> + '_ {
+    rep.cycles
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| c.is_empty())
+        .map(|(r, _)| r)
+}
+
+/// The global vertex pool: refined boundary points, each position once.
+struct Pool<'a> {
+    refined: &'a [DVec3],
+    /// Refined point index → vertex id (u32::MAX: not yet used).
+    id_of: Vec<u32>,
+    by_position: HashMap<[u64; 3], u32>,
+    positions: Vec<DVec3>,
+}
+
+impl<'a> Pool<'a> {
+    fn new(refined: &'a [DVec3]) -> Pool<'a> {
+        Pool {
+            refined,
+            id_of: vec![u32::MAX; refined.len()],
+            by_position: HashMap::new(),
+            positions: Vec::new(),
+        }
+    }
+
+    /// The vertex of refined point `i` (indices come from [`refine_arcs`], so in range).
+    fn id(&mut self, i: u32) -> u32 {
+        match self.id_of.get(i as usize) {
+            Some(&id) if id != u32::MAX => id,
+            Some(_) => {
+                let p = self.refined.get(i as usize).copied().unwrap_or_default();
+                let id = self.add(p);
+                if let Some(slot) = self.id_of.get_mut(i as usize) {
+                    *slot = id;
+                }
+                id
+            }
+            None => 0,
+        }
+    }
+
+    /// A vertex at `p`: the existing one at exactly this position, or a new one.
+    fn add(&mut self, p: DVec3) -> u32 {
+        // +0.0 and −0.0 are the same position.
+        let key = (p + DVec3::ZERO).to_array().map(f64::to_bits);
+        let next = self.positions.len() as u32;
+        *self.by_position.entry(key).or_insert_with(|| {
+            self.positions.push(p);
+            next
+        })
+    }
+
+    fn position(&self, v: u32) -> DVec3 {
+        self.positions.get(v as usize).copied().unwrap_or_default()
+    }
+}
+
+/// `ids` as a closed loop without consecutive repeats (the last compared with the first).
+fn without_repeats(ids: Vec<u32>) -> Vec<u32> {
+    let mut out: Vec<u32> = Vec::with_capacity(ids.len());
+    for v in ids {
+        if out.last() != Some(&v) {
+            out.push(v);
+        }
+    }
+    while out.len() > 1 && out.first() == out.last() {
+        out.pop();
+    }
+    out
+}
+
+/// One piece to triangulate: a region, or half of a whole-ellipsoid region.
+struct Piece {
+    region: u32,
+    chart: RegionChart,
+    /// Positions of the piece's boundary vertices, local numbering.
+    boundary: Vec<DVec3>,
+    /// Loops in local numbering.
+    loops: Vec<Vec<u32>>,
+    /// Local boundary vertex → pool vertex.
+    global: Vec<u32>,
+    /// Estimated area (model units²).
+    area: f64,
+}
+
+impl Piece {
+    fn new(
+        region: u32,
+        chart: RegionChart,
+        loops: &[Vec<u32>],
+        positions: &[DVec3],
+        area: f64,
+    ) -> Piece {
+        let mut local: HashMap<u32, u32> = HashMap::new();
+        let mut global = Vec::new();
+        let mut boundary = Vec::new();
+        let loops = loops
+            .iter()
+            .map(|l| {
+                l.iter()
+                    .map(|&v| {
+                        *local.entry(v).or_insert_with(|| {
+                            global.push(v);
+                            boundary.push(positions.get(v as usize).copied().unwrap_or_default());
+                            (global.len() - 1) as u32
+                        })
+                    })
+                    .collect()
+            })
+            .collect();
+        Piece {
+            region,
+            chart,
+            boundary,
+            loops,
+            global,
+            area,
+        }
+    }
+
+    fn input(&self) -> RegionInput<'_> {
+        RegionInput {
+            region: self.region,
+            chart: &self.chart,
+            boundary: &self.boundary,
+            loops: &self.loops,
+        }
+    }
+}
+
+/// A whole ellipsoid cut along its local equator into two halves sharing the equator's
+/// points, each in its own chart (whose pole is then the other half's pole).
+fn split_whole(
+    region: u32,
+    e: &Ellipsoid,
+    spacing: f64,
+    max_points: usize,
+    pool: &mut Pool<'_>,
+) -> Result<[Piece; 2], RemeshError> {
+    let on_equator = |t: f64| e.from_unit_sphere(DVec3::new(t.cos(), t.sin(), 0.0));
+    let samples = 256;
+    let circumference: f64 = (0..samples)
+        .map(|k| {
+            let t = std::f64::consts::TAU * k as f64 / samples as f64;
+            let t1 = std::f64::consts::TAU * (k + 1) as f64 / samples as f64;
+            (on_equator(t1) - on_equator(t)).length()
+        })
+        .sum();
+    let wanted = (circumference / spacing).ceil();
+    let count = if wanted.is_finite() {
+        (wanted as usize).clamp(MIN_EQUATOR_POINTS, max_points.max(MIN_EQUATOR_POINTS))
+    } else {
+        MIN_EQUATOR_POINTS
+    };
+    let ring: Vec<u32> = (0..count)
+        .map(|k| pool.add(on_equator(std::f64::consts::TAU * k as f64 / count as f64)))
+        .collect();
+    let ring = without_repeats(ring);
+    if ring.len() < 3 {
+        return Err(RemeshError::Region {
+            region,
+            what: "ellipsoid too small to mesh",
+        });
+    }
+    // Increasing angle is counter-clockwise seen from local +z: the northern half is on its
+    // left when the normal points outward (positive sign), the southern half when it points
+    // inward (negative sign).
+    let reversed: Vec<u32> = ring.iter().rev().copied().collect();
+    let (north_loop, south_loop) = match e.sign {
+        crate::ellipsoid::Sign::Positive => (ring, reversed),
+        crate::ellipsoid::Sign::Negative => (reversed, ring),
+    };
+    let half = |lp: Vec<u32>| -> Result<Piece, RemeshError> {
+        let points: Vec<DVec3> = lp.iter().map(|&v| pool.position(v)).collect();
+        let chart = RegionChart::new(region, e, &[points])?;
+        Ok(Piece::new(region, chart, &[lp], &pool.positions, 0.0))
+    };
+    Ok([half(north_loop)?, half(south_loop)?])
+}
+
+/// Adaptive scheme: the budget shared by error through a max-heap of the pieces' worst
+/// errors (section 5.3).
+fn triangulate_adaptive(
+    pieces: &[Piece],
+    boundary_vertices: usize,
+    budget: usize,
+    tolerance: Option<f64>,
+    spacing: f64,
+) -> Result<Vec<RegionMesh>, RemeshError> {
+    let inputs: Vec<RegionInput<'_>> = pieces.iter().map(Piece::input).collect();
+    let mut tris = inputs
+        .iter()
+        .map(|input| AdaptiveTriangulation::new(input, spacing / 4.0))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut heap: BinaryHeap<Worst> = tris
+        .iter()
+        .enumerate()
+        .filter_map(|(i, t)| t.worst_error().map(|error| Worst { error, piece: i }))
+        .collect();
+    let mut total = boundary_vertices;
+    while total < budget {
+        let Some(worst) = heap.pop() else { break };
+        if tolerance.is_some_and(|t| worst.error <= t) {
+            break;
+        }
+        let Some(t) = tris.get_mut(worst.piece) else {
+            continue;
+        };
+        if t.insert_worst() {
+            total += 1;
+        }
+        if let Some(error) = t.worst_error() {
+            heap.push(Worst {
+                error,
+                piece: worst.piece,
+            });
+        }
+    }
+    Ok(tris
+        .into_iter()
+        .map(AdaptiveTriangulation::finish)
+        .collect())
+}
+
+/// A heap entry: the worst error of a piece; ties go to the lower piece index.
+#[derive(Debug, Clone, Copy)]
+struct Worst {
+    error: f64,
+    piece: usize,
+}
+
+impl PartialEq for Worst {
+    fn eq(&self, other: &Self) -> bool {
+        self.cmp(other) == Ordering::Equal
+    }
+}
+
+impl Eq for Worst {}
+
+impl PartialOrd for Worst {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for Worst {
+    fn cmp(&self, other: &Self) -> Ordering {
+        self.error
+            .total_cmp(&other.error)
+            .then_with(|| other.piece.cmp(&self.piece))
+    }
+}
+
+/// Parametric scheme: the interior budget shared by estimated area (largest remainders),
+/// each piece gridded on its own (section 5.2).
+fn triangulate_by_area(
+    pieces: &[Piece],
+    boundary_vertices: usize,
+    budget: usize,
+) -> Result<Vec<RegionMesh>, RemeshError> {
+    let interior = budget.saturating_sub(boundary_vertices);
+    let total: f64 = pieces.iter().map(|p| p.area).sum();
+    let shares: Vec<f64> = pieces
+        .iter()
+        .map(|p| {
+            if total > 0.0 {
+                interior as f64 * p.area / total
+            } else {
+                interior as f64 / pieces.len().max(1) as f64
+            }
+        })
+        .collect();
+    let mut counts: Vec<usize> = shares.iter().map(|s| s.floor() as usize).collect();
+    let mut left = interior.saturating_sub(counts.iter().sum());
+    let mut order: Vec<usize> = (0..pieces.len()).collect();
+    order.sort_by(|&a, &b| {
+        let ra = shares[a] - shares[a].floor();
+        let rb = shares[b] - shares[b].floor();
+        rb.total_cmp(&ra).then(a.cmp(&b))
+    });
+    for i in order {
+        if left == 0 {
+            break;
+        }
+        if let Some(c) = counts.get_mut(i) {
+            *c += 1;
+            left -= 1;
+        }
+    }
+    pieces
+        .iter()
+        .zip(counts)
+        .map(|(p, n)| triangulate_parametric(&p.input(), n))
+        .collect()
+}
+
+/// Joins the pieces' triangles into one mesh with analytic normals, then checks it.
+fn join(
+    rep: &Representation,
+    boundary: Vec<DVec3>,
+    pieces: &[Piece],
+    meshes: Vec<RegionMesh>,
+) -> Result<Remeshed, RemeshError> {
+    let mut positions = boundary;
+    let mut faces = Vec::new();
+    let mut face_regions = Vec::new();
+    for (piece, m) in pieces.iter().zip(&meshes) {
+        let first_interior = positions.len();
+        positions.extend_from_slice(&m.interior);
+        for tri in &m.triangles {
+            let mut face = [0u32; 3];
+            let mut ok = true;
+            for (slot, corner) in face.iter_mut().zip(tri) {
+                let v = match *corner {
+                    Corner::Boundary(i) => piece.global.get(i as usize).copied(),
+                    Corner::Interior(i) => u32::try_from(first_interior + i as usize).ok(),
+                };
+                match v {
+                    Some(v) => *slot = v,
+                    None => ok = false,
+                }
+            }
+            if !ok || face[0] == face[1] || face[1] == face[2] || face[0] == face[2] {
+                return Err(RemeshError::Region {
+                    region: piece.region,
+                    what: "the triangulation returned an invalid triangle",
+                });
+            }
+            faces.push(face);
+            face_regions.push(piece.region);
+        }
+    }
+    let (positions, faces) = drop_unused(positions, faces);
+    let normals = vertex_normals(rep, &positions, &faces, &face_regions);
+    let mesh = Mesh::new(positions, faces)?;
+    let check = check_mesh(rep, &mesh, &face_regions);
+    Ok(Remeshed {
+        mesh,
+        normals,
+        face_regions,
+        check,
     })
+}
+
+/// Removes vertices no face uses, renumbering the rest in order.
+fn drop_unused(positions: Vec<DVec3>, mut faces: Vec<[u32; 3]>) -> (Vec<DVec3>, Vec<[u32; 3]>) {
+    let mut new_index = vec![u32::MAX; positions.len()];
+    for f in &faces {
+        for &v in f {
+            if let Some(slot) = new_index.get_mut(v as usize) {
+                *slot = 0;
+            }
+        }
+    }
+    let mut kept = Vec::with_capacity(positions.len());
+    for (slot, p) in new_index.iter_mut().zip(&positions) {
+        if *slot == 0 {
+            *slot = kept.len() as u32;
+            kept.push(*p);
+        }
+    }
+    for f in &mut faces {
+        for v in f {
+            *v = new_index.get(*v as usize).copied().unwrap_or(0);
+        }
+    }
+    (kept, faces)
+}
+
+/// Per vertex, the signed ellipsoid normals of the regions it touches, averaged and
+/// normalised (faces are grouped by region, so each region counts once per vertex).
+fn vertex_normals(
+    rep: &Representation,
+    positions: &[DVec3],
+    faces: &[[u32; 3]],
+    face_regions: &[u32],
+) -> Vec<DVec3> {
+    let mut sum = vec![DVec3::ZERO; positions.len()];
+    let mut last = vec![u32::MAX; positions.len()];
+    let mut first = vec![DVec3::ZERO; positions.len()];
+    for (f, &r) in faces.iter().zip(face_regions) {
+        let Some(e) = rep.ellipsoids.get(r as usize) else {
+            continue;
+        };
+        for &v in f {
+            let v = v as usize;
+            let (Some(s), Some(l), Some(p)) = (sum.get_mut(v), last.get_mut(v), positions.get(v))
+            else {
+                continue;
+            };
+            if *l != r {
+                let n = e.normal(*p);
+                if *l == u32::MAX {
+                    if let Some(fst) = first.get_mut(v) {
+                        *fst = n;
+                    }
+                }
+                *l = r;
+                *s += n;
+            }
+        }
+    }
+    sum.iter()
+        .zip(&first)
+        .map(|(s, f)| s.try_normalize().or(f.try_normalize()).unwrap_or(DVec3::Z))
+        .collect()
+}
+
+/// Counts degenerate and flipped triangles and reads closedness and orientation off the
+/// topology.
+pub fn check_mesh(rep: &Representation, mesh: &Mesh, face_regions: &[u32]) -> MeshCheck {
+    let diagonal = mesh.bounding_box().map_or(0.0, |b| b.diagonal());
+    let min_area = DEGENERATE_AREA * diagonal * diagonal;
+    let mut degenerate = 0;
+    let mut flipped = 0;
+    for (f, &r) in face_regions.iter().enumerate().take(mesh.face_count()) {
+        let area = mesh.face_area(f);
+        if area.is_nan() || area <= min_area {
+            degenerate += 1;
+            continue;
+        }
+        if let Some(e) = rep.ellipsoids.get(r as usize) {
+            if mesh.face_normal(f).dot(e.normal(mesh.face_centroid(f))) < 0.0 {
+                flipped += 1;
+            }
+        }
+    }
+    let t = mesh.topology();
+    MeshCheck {
+        degenerate,
+        flipped,
+        closed: t.is_closed(),
+        manifold: t.is_manifold(),
+        consistently_oriented: t.is_consistently_oriented(),
+        border_loops: t.boundary_loops().len(),
+        has_border_arcs: rep.arcs.iter().any(|a| a.right == Side::Border),
+    }
+}
+
+/// The bounding-box diagonal the tolerance is a fraction of: the box of the boundary points
+/// and of the whole-ellipsoid regions.
+fn reference_diagonal(rep: &Representation) -> f64 {
+    let mut corners: Vec<DVec3> = rep.points.clone();
+    for r in whole_regions(rep) {
+        if let Some(e) = rep.ellipsoids.get(r) {
+            let half = ellipsoid_half_extent(e);
+            corners.push(e.center - half);
+            corners.push(e.center + half);
+        }
+    }
+    crate::mesh::Aabb::from_points(&corners).map_or(0.0, |b| b.diagonal())
+}
+
+/// Half the size of an ellipsoid's axis-aligned bounding box.
+fn ellipsoid_half_extent(e: &Ellipsoid) -> DVec3 {
+    let m = glam::DMat3::from_quat(e.rotation);
+    let scaled = [
+        m.x_axis * e.radii.x,
+        m.y_axis * e.radii.y,
+        m.z_axis * e.radii.z,
+    ];
+    DVec3::new(
+        scaled.iter().map(|a| a.x * a.x).sum::<f64>().sqrt(),
+        scaled.iter().map(|a| a.y * a.y).sum::<f64>().sqrt(),
+        scaled.iter().map(|a| a.z * a.z).sum::<f64>().sqrt(),
+    )
+}
+
+/// Per region, an estimate of its area: the solid angle its loops enclose on the unit sphere
+/// (seen from the centre of the region's ellipsoid) times the mean area scale of the map to
+/// the ellipsoid at its boundary points; a whole ellipsoid's area by Thomsen's formula.
+fn estimate_areas(rep: &Representation) -> Result<Vec<f64>, RemeshError> {
+    let mut areas = Vec::with_capacity(rep.region_count());
+    for (r, e) in rep.ellipsoids.iter().enumerate() {
+        let cycles = rep.cycles.get(r).map_or(&[][..], Vec::as_slice);
+        let area = if cycles.is_empty() {
+            ellipsoid_area(e)
+        } else {
+            let mut loops: Vec<Vec<DVec3>> = Vec::with_capacity(cycles.len());
+            for c in cycles {
+                let mut lp = Vec::new();
+                for a in &c.arcs {
+                    let Some(mut pts) = rep.arc_positions(a.arc as usize) else {
+                        continue;
+                    };
+                    if a.reversed {
+                        pts.reverse();
+                    }
+                    lp.extend(pts);
+                }
+                loops.push(lp);
+            }
+            region_area(e, &loops)
+        };
+        if !area.is_finite() {
+            return Err(RemeshError::Geometry {
+                what: "region area not finite",
+            });
+        }
+        areas.push(area);
+    }
+    Ok(areas)
+}
+
+/// Knud Thomsen's approximation of an ellipsoid's surface area (relative error < 1.1 %).
+pub fn ellipsoid_area(e: &Ellipsoid) -> f64 {
+    const P: f64 = 1.6075;
+    let (a, b, c) = (e.radii.x.powf(P), e.radii.y.powf(P), e.radii.z.powf(P));
+    4.0 * std::f64::consts::PI * ((a * b + a * c + b * c) / 3.0).powf(1.0 / P)
+}
+
+/// The estimated area of the part of `e` that `loops` (region on the left) bound.
+fn region_area(e: &Ellipsoid, loops: &[Vec<DVec3>]) -> f64 {
+    let dirs: Vec<Vec<DVec3>> = loops
+        .iter()
+        .map(|l| {
+            l.iter()
+                .filter_map(|&p| e.to_unit_sphere(p).try_normalize())
+                .collect()
+        })
+        .collect();
+    let count: usize = dirs.iter().map(Vec::len).sum();
+    if count == 0 {
+        return 0.0;
+    }
+    // Apex of the fan: away from the boundary.
+    let mean: DVec3 = dirs.iter().flatten().copied().sum();
+    let apex = (-mean).try_normalize().unwrap_or(DVec3::Z);
+    let mut solid = 0.0;
+    for l in &dirs {
+        for (i, &u) in l.iter().enumerate() {
+            let Some(&w) = l.get(i + 1).or(l.first()) else {
+                continue;
+            };
+            // Van Oosterom & Strackee: the signed solid angle of the triangle (apex, u, w).
+            let num = apex.dot(u.cross(w));
+            let den = 1.0 + apex.dot(u) + apex.dot(w) + u.dot(w);
+            solid += 2.0 * num.atan2(den);
+        }
+    }
+    // The fan covers the apex's side of the loops: positively if the region (on the
+    // loops' left seen from outside) is that side, else negatively its complement.
+    let four_pi = 4.0 * std::f64::consts::PI;
+    let mut sphere_area = e.sign.factor() * solid;
+    if sphere_area < 0.0 {
+        sphere_area += four_pi;
+    }
+    let sphere_area = sphere_area.clamp(0.0, four_pi);
+    let abc = e.radii.x * e.radii.y * e.radii.z;
+    let scale: f64 = dirs
+        .iter()
+        .flatten()
+        .map(|u| abc * (*u / e.radii).length())
+        .sum::<f64>()
+        / count as f64;
+    sphere_area * scale
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_small_cap_has_the_area_of_a_cap() {
+        // A circle of angular radius 0.3 around +x on a sphere of radius 2, counter-clockwise
+        // seen from outside: the cap 2π(1 − cos θ)·r².
+        let e = Ellipsoid::sphere(DVec3::ZERO, 2.0);
+        let theta: f64 = 0.3;
+        let lp: Vec<DVec3> = (0..400)
+            .map(|k| {
+                let t = std::f64::consts::TAU * k as f64 / 400.0;
+                2.0 * DVec3::new(theta.cos(), theta.sin() * t.cos(), theta.sin() * t.sin())
+            })
+            .collect();
+        let cap = std::f64::consts::TAU * (1.0 - theta.cos()) * 4.0;
+        let a = region_area(&e, std::slice::from_ref(&lp));
+        assert!((a - cap).abs() < 1e-3 * cap, "{a} vs {cap}");
+        // Walked the other way, the region is the rest of the sphere.
+        let rev: Vec<DVec3> = lp.iter().rev().copied().collect();
+        let rest = 16.0 * std::f64::consts::PI - cap;
+        let a = region_area(&e, &[rev]);
+        assert!((a - rest).abs() < 1e-3 * rest, "{a} vs {rest}");
+    }
+
+    #[test]
+    fn thomsen_is_exact_on_spheres() {
+        let e = Ellipsoid::sphere(DVec3::ONE, 3.0);
+        let exact = 4.0 * std::f64::consts::PI * 9.0;
+        assert!((ellipsoid_area(&e) - exact).abs() < 1e-9 * exact);
+    }
+
+    #[test]
+    fn loops_lose_consecutive_repeats() {
+        assert_eq!(without_repeats(vec![1, 1, 2, 3, 3, 1]), vec![1, 2, 3]);
+        assert_eq!(without_repeats(vec![4, 4]), vec![4]);
+    }
+
+    #[test]
+    fn options_are_validated() {
+        let rep = crate::format::sample::three_regions_two_junctions();
+        for bad in [
+            RemeshOptions {
+                vertices: Some(0),
+                ..RemeshOptions::default()
+            },
+            RemeshOptions {
+                tolerance: Some(-1.0),
+                ..RemeshOptions::default()
+            },
+            RemeshOptions {
+                tolerance: Some(f64::NAN),
+                ..RemeshOptions::default()
+            },
+            RemeshOptions {
+                vertices: Some(100),
+                max_vertices: 10,
+                ..RemeshOptions::default()
+            },
+        ] {
+            assert!(
+                matches!(assemble(&rep, &bad), Err(RemeshError::InvalidOption { .. })),
+                "{bad:?}"
+            );
+        }
+    }
 }
