@@ -200,7 +200,8 @@ impl Plan<'_> {
                 .iter()
                 .map(|l| l.iter().map(|&v| pool.position(v)).collect())
                 .collect();
-            let chart = RegionChart::new(region, ellipsoid, &loop_points)?;
+            let surface = chart_surface(ellipsoid, &loop_points);
+            let chart = RegionChart::new(region, &surface, &loop_points)?;
             pieces.push(Piece::new(region, chart, &loops, &pool.positions, area));
         }
         if pool.positions.len() > options.max_vertices {
@@ -350,6 +351,33 @@ impl Piece {
             boundary: &self.boundary,
             loops: &self.loops,
         }
+    }
+}
+
+/// How much longer than the region's reach (its boundary's largest distance from the
+/// centre) a radius may be before the chart uses a stand-in ellipsoid.
+const MAX_RADIUS_TO_REACH: f64 = 4.0;
+
+/// The ellipsoid a region's chart and triangulation use: the region's own, unless a radius
+/// is far longer than the region's reach (fits to nearly flat or cylindrical parts give radii
+/// of thousands); the unit-sphere map then squeezes the region into a sliver where quantised
+/// boundary points cross. The stand-in has the same centre, rotation and sign and its radii
+/// capped at [`MAX_RADIUS_TO_REACH`] times the reach: the same rays through the same centre,
+/// spread evenly, so the region's shape in the chart is sound; interior points are moved
+/// back onto the real ellipsoid along their rays when the pieces are joined.
+fn chart_surface(e: &Ellipsoid, loops: &[Vec<DVec3>]) -> Ellipsoid {
+    let reach = loops
+        .iter()
+        .flatten()
+        .map(|&p| (p - e.center).length())
+        .fold(0.0, f64::max);
+    let cap = MAX_RADIUS_TO_REACH * reach;
+    if !(cap.is_finite() && cap > 0.0) || e.radii.max_element() <= cap {
+        return *e;
+    }
+    Ellipsoid {
+        radii: e.radii.min(DVec3::splat(cap)),
+        ..*e
     }
 }
 
@@ -531,7 +559,14 @@ fn join(
     let mut face_regions = Vec::new();
     for (piece, m) in pieces.iter().zip(&meshes) {
         let first_interior = positions.len();
-        positions.extend_from_slice(&m.interior);
+        match rep.ellipsoids.get(piece.region as usize) {
+            // Meshed on a stand-in surface: the points go back onto the region's ellipsoid
+            // along the same rays.
+            Some(e) if *e != piece.chart.ellipsoid => {
+                positions.extend(m.interior.iter().map(|&p| e.project_radially(p)));
+            }
+            _ => positions.extend_from_slice(&m.interior),
+        }
         for tri in &m.triangles {
             let mut face = [0u32; 3];
             let mut ok = true;
