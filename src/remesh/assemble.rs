@@ -109,6 +109,7 @@ pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshe
         spacing,
         tolerance: tolerance.unwrap_or(spacing / 16.0),
         max_new_points: (budget / 4).min(options.max_vertices - minimum),
+        prune: true,
     };
     let plan = Plan {
         rep,
@@ -118,17 +119,47 @@ pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshe
         tolerance,
         areas: &areas,
     };
-    match plan.mesh(&settings) {
-        // Refined points off the stored polyline can make loops cross where arcs meet at
-        // sharp angles or where the fitted ellipsoids meet far from the stored boundary: the
-        // stored boundary alone is then the safer input.
-        Err(RemeshError::Region { .. }) if settings.max_new_points > 0 => {
-            plan.mesh(&RefineSettings {
-                max_new_points: 0,
-                ..settings
-            })
+    // Attempts, in order: refined and pruned arcs; the stored arcs, pruned (refined points
+    // off the stored polyline can make loops cross where arcs meet at sharp angles or where
+    // the fitted ellipsoids meet far from the stored boundary); the stored arcs as they are
+    // (pruning can shortcut a corner across a neighbouring arc). The first clean mesh wins,
+    // else the first mesh, else the last error.
+    let attempts = [
+        settings,
+        RefineSettings {
+            max_new_points: 0,
+            ..settings
+        },
+        RefineSettings {
+            max_new_points: 0,
+            prune: false,
+            ..settings
+        },
+    ];
+    let mut first_mesh = None;
+    let mut last_error = None;
+    for (k, attempt) in attempts.iter().enumerate() {
+        if k == 1 && settings.max_new_points == 0 {
+            continue;
         }
-        result => result,
+        match plan.mesh(attempt) {
+            Ok(out) => {
+                let c = out.check;
+                if c.manifold && (c.closed || c.has_border_arcs) {
+                    return Ok(out);
+                }
+                first_mesh.get_or_insert(out);
+            }
+            Err(e @ RemeshError::Region { .. }) => last_error = Some(e),
+            Err(e) => return Err(e),
+        }
+    }
+    match (first_mesh, last_error) {
+        (Some(out), _) => Ok(out),
+        (None, Some(e)) => Err(e),
+        (None, None) => Err(RemeshError::Geometry {
+            what: "no meshing attempt was made",
+        }),
     }
 }
 
@@ -188,13 +219,21 @@ impl Plan<'_> {
                     lp.extend(ids.into_iter().skip(usize::from(!closed)));
                 }
                 let lp = without_repeats(lp);
+                // Two arcs that are the same segment between two junctions enclose nothing:
+                // the loop is dropped, and the regions on its other sides, which see the
+                // same segment the other way, are glued directly. Without its outer loop
+                // the region is empty.
                 if lp.len() < 3 {
-                    return Err(RemeshError::Region {
-                        region,
-                        what: "a boundary loop has fewer than three distinct points",
-                    });
+                    if cycle.outer {
+                        loops.clear();
+                        break;
+                    }
+                    continue;
                 }
                 loops.push(lp);
+            }
+            if loops.is_empty() {
+                continue;
             }
             let loop_points: Vec<Vec<DVec3>> = loops
                 .iter()
@@ -211,6 +250,7 @@ impl Plan<'_> {
             });
         }
 
+        settle_charts(rep, &mut pieces, spacing / 4.0)?;
         let meshes = match options.scheme {
             Scheme::Adaptive => {
                 triangulate_adaptive(&pieces, pool.positions.len(), budget, tolerance, spacing)?
@@ -307,6 +347,9 @@ struct Piece {
     global: Vec<u32>,
     /// Estimated area (model units²).
     area: f64,
+    /// When the chart is the view from beneath the region ([`Piece::view_from_beneath`]):
+    /// the point the interior points are lifted from onto the region's ellipsoid.
+    beneath: Option<DVec3>,
 }
 
 impl Piece {
@@ -341,7 +384,56 @@ impl Piece {
             loops,
             global,
             area,
+            beneath: None,
         }
+    }
+
+    /// The chart seen from beneath the region, for a region whose boundary, projected from
+    /// its ellipsoid's centre, crosses itself (a region that is not star-shaped from there:
+    /// common on real meshes, where the ellipsoid only approximates the surface). The point
+    /// of view lies below the boundary's centroid, against the mean outward normal, twice
+    /// the region's reach deep; the chart surface is the sphere around it through the
+    /// centroid (positive: the mesh's outward side faces away from the point of view).
+    fn view_from_beneath(&self, e: &Ellipsoid) -> Option<Piece> {
+        let n = self.boundary.len();
+        if n == 0 {
+            return None;
+        }
+        let centroid = self.boundary.iter().copied().sum::<DVec3>() / n as f64;
+        let normal = self
+            .boundary
+            .iter()
+            .map(|&p| e.normal(p))
+            .sum::<DVec3>()
+            .try_normalize()?;
+        let reach = self
+            .boundary
+            .iter()
+            .map(|&p| (p - centroid).length())
+            .fold(0.0, f64::max);
+        let origin = centroid - 2.0 * reach * normal;
+        let sphere = Ellipsoid::sphere(origin, 2.0 * reach);
+        if !(sphere.is_valid() && origin.is_finite()) {
+            return None;
+        }
+        let loops: Vec<Vec<DVec3>> = self
+            .loops
+            .iter()
+            .map(|l| {
+                l.iter()
+                    .map(|&i| self.boundary.get(i as usize).copied().unwrap_or_default())
+                    .collect()
+            })
+            .collect();
+        let chart = RegionChart::new(self.region, &sphere, &loops).ok()?;
+        Some(Piece {
+            chart,
+            boundary: self.boundary.clone(),
+            loops: self.loops.clone(),
+            global: self.global.clone(),
+            beneath: Some(origin),
+            ..*self
+        })
     }
 
     fn input(&self) -> RegionInput<'_> {
@@ -352,6 +444,47 @@ impl Piece {
             loops: &self.loops,
         }
     }
+
+    /// An interior point of this piece's triangulation on the region's ellipsoid `e`.
+    fn lift(&self, e: &Ellipsoid, p: DVec3) -> DVec3 {
+        if let Some(origin) = self.beneath {
+            // Along the ray from the point of view: the crossing nearest to p.
+            let best = e.intersect_ray(origin, p - origin).and_then(|ts| {
+                ts.into_iter()
+                    .filter(|t| *t > 0.0)
+                    .min_by(|a, b| (a - 1.0).abs().total_cmp(&(b - 1.0).abs()))
+            });
+            return best.map_or(p, |t| origin + t * (p - origin));
+        }
+        if *e != self.chart.ellipsoid {
+            return e.project_radially(p);
+        }
+        p
+    }
+}
+
+/// Replaces the chart of every piece whose boundary-only triangulation fails by the view
+/// from beneath it, if that one triangulates; otherwise returns the first failure.
+fn settle_charts(
+    rep: &Representation,
+    pieces: &mut [Piece],
+    min_spacing: f64,
+) -> Result<(), RemeshError> {
+    for piece in pieces.iter_mut() {
+        let Err(error) = AdaptiveTriangulation::new(&piece.input(), min_spacing) else {
+            continue;
+        };
+        let Some(e) = rep.ellipsoids.get(piece.region as usize) else {
+            return Err(error);
+        };
+        match piece.view_from_beneath(e) {
+            Some(other) if AdaptiveTriangulation::new(&other.input(), min_spacing).is_ok() => {
+                *piece = other;
+            }
+            _ => return Err(error),
+        }
+    }
+    Ok(())
 }
 
 /// How much longer than the region's reach (its boundary's largest distance from the
@@ -560,12 +693,9 @@ fn join(
     for (piece, m) in pieces.iter().zip(&meshes) {
         let first_interior = positions.len();
         match rep.ellipsoids.get(piece.region as usize) {
-            // Meshed on a stand-in surface: the points go back onto the region's ellipsoid
-            // along the same rays.
-            Some(e) if *e != piece.chart.ellipsoid => {
-                positions.extend(m.interior.iter().map(|&p| e.project_radially(p)));
-            }
-            _ => positions.extend_from_slice(&m.interior),
+            // Meshed on a stand-in surface: the points go back onto the region's ellipsoid.
+            Some(e) => positions.extend(m.interior.iter().map(|&p| piece.lift(e, p))),
+            None => positions.extend_from_slice(&m.interior),
         }
         for tri in &m.triangles {
             let mut face = [0u32; 3];

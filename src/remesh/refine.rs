@@ -43,6 +43,9 @@ pub struct RefineSettings {
     pub tolerance: f64,
     /// Most points added over all arcs.
     pub max_new_points: usize,
+    /// Whether to drop the points both neighbouring charts see as convex
+    /// ([`prune_double_ears`]).
+    pub prune: bool,
 }
 
 /// The refined arcs: one pool of points shared by every arc.
@@ -101,7 +104,7 @@ pub fn refine_arcs(rep: &Representation, settings: &RefineSettings) -> RefinedBo
             };
             split.segment(a, b, 0);
         }
-        if let Some(right) = right {
+        if let (Some(right), true) = (right, settings.prune) {
             prune_double_ears(&mut chain, &points, arc.closed, left, right);
         }
         arcs.push(chain);
@@ -130,7 +133,7 @@ fn turns_left(e: &Ellipsoid, a: DVec3, b: DVec3, c: DVec3) -> bool {
 /// triangle (previous, point, next) would be inside both regions and the glued mesh would
 /// not be manifold. Dropping the point (from the one chain both regions use) removes the
 /// conflict; it is nearly on the chord of its neighbours. Junctions stay.
-fn prune_double_ears(
+pub fn prune_double_ears(
     chain: &mut Vec<u32>,
     points: &[DVec3],
     closed: bool,
@@ -383,6 +386,7 @@ mod tests {
             spacing: 0.1,
             tolerance: 1e-3,
             max_new_points: 10_000,
+            prune: true,
         };
         let refined = refine_arcs(&rep, &settings);
         assert_eq!(&refined.points[..3], &stored[..]);
@@ -414,6 +418,7 @@ mod tests {
                 spacing: 1e-9,
                 tolerance: 0.0,
                 max_new_points: cap,
+                prune: true,
             };
             let refined = refine_arcs(&rep, &settings);
             assert!(refined.added <= cap, "{cap}: {}", refined.added);
@@ -433,6 +438,7 @@ mod tests {
             spacing: 0.5,
             tolerance: 1e-3,
             max_new_points: 1000,
+            prune: true,
         };
         let refined = refine_arcs(&rep, &settings);
         for p in &refined.points {
