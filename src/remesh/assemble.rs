@@ -673,12 +673,37 @@ fn triangulate_by_area(
             left -= 1;
         }
     }
-    pieces
-        .iter()
-        .zip(counts)
-        .map(|(p, n)| triangulate_parametric(&p.input(), n))
-        .collect()
+    // The grid gives about, not exactly, the asked count: each piece's request is scaled by
+    // its own miss and the pieces gridded again, a few times, keeping the closest total.
+    let mut best: Option<(usize, Vec<RegionMesh>)> = None;
+    let mut requests = counts;
+    for _ in 0..PARAMETRIC_ROUNDS {
+        let meshes = pieces
+            .iter()
+            .zip(&requests)
+            .map(|(p, &n)| triangulate_parametric(&p.input(), n))
+            .collect::<Result<Vec<_>, _>>()?;
+        let made: usize = meshes.iter().map(|m| m.interior.len()).sum();
+        let miss = made.abs_diff(interior);
+        if best.as_ref().is_none_or(|(m, _)| miss < *m) {
+            let done = miss * 400 <= interior.max(1);
+            for ((request, m), share) in requests.iter_mut().zip(&meshes).zip(&shares) {
+                let got = m.interior.len().max(1) as f64;
+                *request = (*request as f64 * share / got).round() as usize;
+            }
+            best = Some((miss, meshes));
+            if done {
+                break;
+            }
+        } else {
+            break;
+        }
+    }
+    Ok(best.map(|(_, m)| m).unwrap_or_default())
 }
+
+/// Most gridding rounds of the parametric scheme.
+const PARAMETRIC_ROUNDS: usize = 4;
 
 /// Joins the pieces' triangles into one mesh with analytic normals, then checks it.
 fn join(
