@@ -122,40 +122,58 @@ pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshe
     // Attempts, in order: refined and pruned arcs; the stored arcs, pruned (refined points
     // off the stored polyline can make loops cross where arcs meet at sharp angles or where
     // the fitted ellipsoids meet far from the stored boundary); the stored arcs as they are
-    // (pruning can shortcut a corner across a neighbouring arc). The first clean mesh wins,
-    // else the first mesh, else the last error.
+    // (pruning can shortcut a corner across a neighbouring arc); and the same without
+    // untangling. A clean mesh ends the search; otherwise the best mesh is kept (sound
+    // topology first, then the fewest degenerate and flipped triangles, then the earliest),
+    // else the last error.
+    let stored = RefineSettings {
+        max_new_points: 0,
+        ..settings
+    };
     let attempts = [
-        settings,
-        RefineSettings {
-            max_new_points: 0,
-            ..settings
-        },
-        RefineSettings {
-            max_new_points: 0,
-            prune: false,
-            ..settings
-        },
+        (settings, true),
+        (stored, true),
+        (
+            RefineSettings {
+                prune: false,
+                ..stored
+            },
+            true,
+        ),
+        (
+            RefineSettings {
+                prune: false,
+                ..stored
+            },
+            false,
+        ),
     ];
-    let mut first_mesh = None;
+    let mut best: Option<((bool, usize), Remeshed)> = None;
     let mut last_error = None;
-    for (k, attempt) in attempts.iter().enumerate() {
+    for (k, (attempt, untangle)) in attempts.iter().enumerate() {
         if k == 1 && settings.max_new_points == 0 {
             continue;
         }
-        match plan.mesh(attempt) {
+        match plan.mesh(attempt, *untangle) {
             Ok(out) => {
                 let c = out.check;
-                if c.manifold && (c.closed || c.has_border_arcs) {
+                if c.is_clean() {
                     return Ok(out);
                 }
-                first_mesh.get_or_insert(out);
+                let score = (
+                    !(c.manifold && c.consistently_oriented && (c.closed || c.has_border_arcs)),
+                    c.degenerate + c.flipped,
+                );
+                if best.as_ref().is_none_or(|(s, _)| score < *s) {
+                    best = Some((score, out));
+                }
             }
             Err(e @ RemeshError::Region { .. }) => last_error = Some(e),
             Err(e) => return Err(e),
         }
     }
-    match (first_mesh, last_error) {
-        (Some(out), _) => Ok(out),
+    match (best, last_error) {
+        (Some((_, out)), _) => Ok(out),
         (None, Some(e)) => Err(e),
         (None, None) => Err(RemeshError::Geometry {
             what: "no meshing attempt was made",
@@ -174,8 +192,13 @@ struct Plan<'a> {
 }
 
 impl Plan<'_> {
-    /// Refines the arcs with `settings`, triangulates every piece and joins them.
-    fn mesh(&self, settings: &RefineSettings) -> Result<Remeshed, RemeshError> {
+    /// Refines the arcs with `settings` (and untangles them if asked), triangulates every
+    /// piece and joins them.
+    fn mesh(
+        &self,
+        settings: &RefineSettings,
+        untangle_arcs: bool,
+    ) -> Result<Remeshed, RemeshError> {
         let Plan {
             rep,
             options,
@@ -184,7 +207,10 @@ impl Plan<'_> {
             tolerance,
             areas,
         } = *self;
-        let refined = refine_arcs(rep, settings);
+        let mut refined = refine_arcs(rep, settings);
+        if untangle_arcs {
+            untangle(rep, &mut refined.arcs, &refined.points);
+        }
         let mut pool = Pool::new(&refined.points);
         let mut pieces = Vec::with_capacity(rep.region_count());
         for (r, cycles) in rep.cycles.iter().enumerate() {
@@ -259,6 +285,142 @@ impl Plan<'_> {
         };
         join(rep, pool.positions, &pieces, meshes)
     }
+}
+
+/// Most rounds of [`untangle`].
+const UNTANGLE_ROUNDS: usize = 8;
+
+/// Loops longer than this (in total, per region) are not untangled: the sweep could be
+/// quadratic on a hostile file.
+const UNTANGLE_MAX_POINTS: usize = 200_000;
+
+/// Removes arc points until no region's loops cross in its chart, where that can be done by
+/// dropping points inside arcs (junctions stay).
+///
+/// The chart sees the boundary along rays from the ellipsoid's centre; where the real
+/// surface is not star-shaped from there (common on real meshes, which the ellipsoid only
+/// approximates), the projected boundary can fold over itself. Each crossing drops an
+/// endpoint of one of the crossing segments from the arc it belongs to, for both regions
+/// the arc separates; a few rounds settle it. Deterministic.
+fn untangle(rep: &Representation, chains: &mut [Vec<u32>], points: &[DVec3]) {
+    for _ in 0..UNTANGLE_ROUNDS {
+        // (arc, position in its chain) of the points to drop.
+        let mut drop: Vec<(u32, usize)> = Vec::new();
+        for (r, cycles) in rep.cycles.iter().enumerate() {
+            let Some(e) = rep.ellipsoids.get(r) else {
+                continue;
+            };
+            if !cycles.is_empty() {
+                region_crossings(r as u32, e, cycles, rep, chains, points, &mut drop);
+            }
+        }
+        if drop.is_empty() {
+            return;
+        }
+        drop.sort_unstable();
+        drop.dedup();
+        // Remove from the back of each chain so that positions stay valid.
+        for &(arc, at) in drop.iter().rev() {
+            let closed = rep.arcs.get(arc as usize).is_some_and(|a| a.closed);
+            if let Some(chain) = chains.get_mut(arc as usize) {
+                let min_len = if closed { 3 } else { 2 };
+                if chain.len() > min_len && at < chain.len() {
+                    chain.remove(at);
+                }
+            }
+        }
+    }
+}
+
+/// Where a loop point sits in the refined arcs, if it may be dropped: (arc, position).
+type Droppable = Option<(u32, usize)>;
+
+/// Finds the crossings of one region's loops in its chart and, for each, a point to drop.
+fn region_crossings(
+    region: u32,
+    e: &Ellipsoid,
+    cycles: &[crate::representation::Cycle],
+    rep: &Representation,
+    chains: &[Vec<u32>],
+    points: &[DVec3],
+    drop: &mut Vec<(u32, usize)>,
+) {
+    // Each loop vertex with the (arc, position) it can be dropped as, if any.
+    let mut loops: Vec<Vec<(DVec3, Droppable)>> = Vec::new();
+    for cycle in cycles {
+        let mut lp = Vec::new();
+        for r in &cycle.arcs {
+            let Some(chain) = chains.get(r.arc as usize) else {
+                continue;
+            };
+            let closed = rep.arcs.get(r.arc as usize).is_some_and(|a| a.closed);
+            let n = chain.len();
+            let order: Vec<usize> = if r.reversed {
+                (0..n).rev().collect()
+            } else {
+                (0..n).collect()
+            };
+            for &k in order.iter().skip(usize::from(!closed)) {
+                let removable = closed || (k > 0 && k + 1 < n);
+                let p = chain.get(k).and_then(|&i| points.get(i as usize)).copied();
+                if let Some(p) = p {
+                    lp.push((p, removable.then_some((r.arc, k))));
+                }
+            }
+        }
+        if lp.len() >= 3 {
+            loops.push(lp);
+        }
+    }
+    let total: usize = loops.iter().map(Vec::len).sum();
+    if loops.is_empty() || total > UNTANGLE_MAX_POINTS {
+        return;
+    }
+    let loop_points: Vec<Vec<DVec3>> = loops
+        .iter()
+        .map(|l| l.iter().map(|v| v.0).collect())
+        .collect();
+    let surface = chart_surface(e, &loop_points);
+    let Ok(chart) = RegionChart::new(region, &surface, &loop_points) else {
+        return;
+    };
+    // Segments in the plane: (a, b, which point to drop if it crosses).
+    let mut segments: Vec<(glam::DVec2, glam::DVec2, Droppable)> = Vec::new();
+    for lp in &loops {
+        for (k, &(p, tag)) in lp.iter().enumerate() {
+            let Some(&(q, next_tag)) = lp.get(k + 1).or(lp.first()) else {
+                continue;
+            };
+            let (a, b) = (chart.to_plane(p), chart.to_plane(q));
+            if a.is_finite() && b.is_finite() {
+                segments.push((a, b, tag.or(next_tag)));
+            }
+        }
+    }
+    segments.sort_by(|s, t| s.0.x.min(s.1.x).total_cmp(&t.0.x.min(t.1.x)));
+    for (i, s) in segments.iter().enumerate() {
+        let max_x = s.0.x.max(s.1.x);
+        for t in segments.iter().skip(i + 1) {
+            if t.0.x.min(t.1.x) > max_x {
+                break;
+            }
+            if segments_cross(s.0, s.1, t.0, t.1) {
+                if let Some(tag) = s.2.or(t.2) {
+                    drop.push(tag);
+                }
+            }
+        }
+    }
+}
+
+/// Whether two segments cross at a point inside both (shared endpoints do not count).
+fn segments_cross(p1: glam::DVec2, p2: glam::DVec2, q1: glam::DVec2, q2: glam::DVec2) -> bool {
+    let cross = |a: glam::DVec2, b: glam::DVec2| a.x * b.y - a.y * b.x;
+    let d1 = cross(p2 - p1, q1 - p1);
+    let d2 = cross(p2 - p1, q2 - p1);
+    let d3 = cross(q2 - q1, p1 - q1);
+    let d4 = cross(q2 - q1, p2 - q1);
+    d1 * d2 < 0.0 && d3 * d4 < 0.0
 }
 
 /// Regions without cycles: whole ellipsoids.
