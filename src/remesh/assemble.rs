@@ -283,7 +283,7 @@ impl Plan<'_> {
             }
             Scheme::Parametric => triangulate_by_area(&pieces, pool.positions.len(), budget)?,
         };
-        join(rep, pool.positions, &pieces, meshes)
+        join(rep, options.max_vertices, pool.positions, &pieces, meshes)
     }
 }
 
@@ -847,11 +847,20 @@ fn triangulate_by_area(
             .collect::<Result<Vec<_>, _>>()?;
         let made: usize = meshes.iter().map(|m| m.interior.len()).sum();
         let miss = made.abs_diff(interior);
+        // A grid far over its request is not asked again (each round costs its size).
+        if made > 2 * interior + 64 {
+            if best.is_none() {
+                best = Some((miss, meshes));
+            }
+            break;
+        }
         if best.as_ref().is_none_or(|(m, _)| miss < *m) {
             let done = miss * 400 <= interior.max(1);
             for ((request, m), share) in requests.iter_mut().zip(&meshes).zip(&shares) {
+                // A piece the grid nearly misses must not ask for an unbounded count.
                 let got = m.interior.len().max(1) as f64;
-                *request = (*request as f64 * share / got).round() as usize;
+                let cap = 4.0 * share + 16.0;
+                *request = (*request as f64 * share / got).min(cap).round() as usize;
             }
             best = Some((miss, meshes));
             if done {
@@ -870,6 +879,7 @@ const PARAMETRIC_ROUNDS: usize = 4;
 /// Joins the pieces' triangles into one mesh with analytic normals, then checks it.
 fn join(
     rep: &Representation,
+    max_vertices: usize,
     boundary: Vec<DVec3>,
     pieces: &[Piece],
     meshes: Vec<RegionMesh>,
@@ -908,6 +918,12 @@ fn join(
         }
     }
     let (positions, faces) = drop_unused(positions, faces);
+    if positions.len() > max_vertices {
+        return Err(RemeshError::TooManyVertices {
+            needed: positions.len(),
+            max: max_vertices,
+        });
+    }
     let normals = vertex_normals(rep, &positions, &faces, &face_regions);
     let mesh = Mesh::new(positions, faces)?;
     let check = check_mesh(rep, &mesh, &face_regions);
