@@ -1,6 +1,7 @@
 //! Argument definitions and dispatch for the `ellip` binary.
 
 mod convert;
+mod decode;
 mod encode;
 mod fixtures;
 mod info;
@@ -20,7 +21,10 @@ Examples:
   ellip convert part.obj part.ply --weld 1e-6   join vertices closer than 1e-6 on the way
   ellip segment bunny.obj -k 12 -o seg.glb      12 ellipsoidal regions, coloured, with statistics
   ellip encode hand.obj -k 18 -o hand.ellip     store 18 ellipsoidal regions in a few kilobytes
-  ellip info hand.ellip                         version, regions, arcs, bytes per section";
+  ellip info hand.ellip                         version, regions, arcs, bytes per section
+  ellip decode hand.ellip -o hand.glb           back to a watertight mesh (20000 vertices by default)
+  ellip decode hand.ellip -o hand.ply --vertices 100000 --colors
+  ellip convert bunny.obj bunny.glb --via-ellip -k 24   mesh → .ellip → mesh in one step";
 
 /// ellip: dense triangle meshes as a few dozen ellipsoidal regions.
 #[derive(Debug, Parser)]
@@ -35,11 +39,15 @@ enum Command {
     /// Describe a mesh: counts, topology, bounding box, volume, curvature, repairs made.
     #[command(after_help = "Example:\n  ellip info fixtures/meshes/torus.obj --json")]
     Info(info::InfoArgs),
-    /// Convert a mesh between formats, chosen by the files' extensions.
+    /// Convert a mesh between formats, chosen by the files' extensions; or through .ellip.
     ///
     /// Reads .obj, .gltf, .glb, .ply, .stl and .off; writes .obj, .gltf (+ .bin), .glb and
-    /// .ply. The output is written atomically and never replaces the input.
-    #[command(after_help = "Example:\n  ellip convert fixtures/meshes/torus.obj torus.glb")]
+    /// .ply. A .ellip input is decoded and remeshed (as `decode`), a .ellip output is
+    /// encoded (as `encode`), and `--via-ellip` goes mesh → .ellip → mesh in memory. The
+    /// output is written atomically and never replaces the input.
+    #[command(
+        after_help = "Examples:\n  ellip convert fixtures/meshes/torus.obj torus.glb\n  ellip convert fixtures/meshes/blob2.obj blob2.glb --via-ellip -k 4 --vertices 5000\n  ellip convert blob2.ellip blob2.ply --colors"
+    )]
     Convert(convert::ConvertArgs),
     /// Segment a mesh into ellipsoidal regions (or planes) and write it coloured per region.
     ///
@@ -59,6 +67,16 @@ enum Command {
         after_help = "Example:\n  ellip encode fixtures/meshes/blob3.obj -k 5 -o blob3.ellip"
     )]
     Encode(encode::EncodeArgs),
+    /// Decode a `.ellip` file back to a triangle mesh (.glb, .gltf, .obj, .ply).
+    ///
+    /// Remeshes every region within a total vertex budget (shared among regions by their
+    /// error), joins them into one mesh with shared boundary vertices and analytic normals,
+    /// and writes it atomically. Reports vertices, triangles, regions, whether the mesh is
+    /// closed, and the time taken.
+    #[command(
+        after_help = "Examples:\n  ellip decode blob3.ellip -o blob3.glb\n  ellip decode blob3.ellip -o blob3.ply --vertices 50000 --colors\n  ellip decode blob3.ellip -o blob3.obj --scheme parametric --json\n  cat blob3.ellip | ellip decode - -o blob3.glb --tolerance 0.001"
+    )]
+    Decode(decode::DecodeArgs),
     /// Regenerate the committed fixture meshes (for developers).
     #[command(hide = true)]
     Fixtures(fixtures::FixturesArgs),
@@ -96,6 +114,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Info(args) => info::run(&args),
         Command::Convert(args) => convert::run(&args),
         Command::Encode(args) => encode::run(&args),
+        Command::Decode(args) => decode::run(&args),
         Command::Segment(args) => segment::run(&args),
         Command::Fixtures(args) => fixtures::run(&args),
     }

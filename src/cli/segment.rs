@@ -547,20 +547,20 @@ fn write_output(
 
 /// A palette colour: its sRGB bytes.
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct Color {
+pub(super) struct Color {
     srgb: [u8; 3],
     /// The colour in OKLab, for distances.
     lab: [f64; 3],
 }
 
 impl Color {
-    fn srgb_rgba(&self) -> [u8; 4] {
+    pub(super) fn srgb_rgba(&self) -> [u8; 4] {
         let [r, g, b] = self.srgb;
         [r, g, b, 255]
     }
 
     /// glTF's `COLOR_0` is linear (glTF 2.0, section 3.7.2.1): the sRGB colour decoded.
-    fn linear_rgba(&self) -> [u8; 4] {
+    pub(super) fn linear_rgba(&self) -> [u8; 4] {
         let [r, g, b] = self.srgb.map(|c| {
             let x = f64::from(c) / 255.0;
             let linear = if x <= 0.04045 {
@@ -580,7 +580,7 @@ impl Color {
 /// fixed set of in-gamut candidates of moderate lightness (light enough to shade, dark
 /// enough to see on white), start with a coral and repeatedly take the candidate farthest
 /// from every colour taken so far (first on ties). Past the candidates, colours repeat.
-fn palette(count: usize) -> Vec<Color> {
+pub(super) fn palette(count: usize) -> Vec<Color> {
     let (candidates, start) = palette_candidates();
     let mut chosen: Vec<usize> = Vec::new();
     // Distance from each candidate to the nearest chosen colour.

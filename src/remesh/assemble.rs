@@ -1,14 +1,1219 @@
 //! The regions joined into one mesh: shared boundary vertices, outward orientation, analytic
-//! normals.
+//! normals (issue 6, items 2, 6 and 7).
+//!
+//! 1. **Budget and spacing.** The total vertex budget N ([`RemeshOptions::budget`]) and an
+//!    estimate A of the total surface area give the target edge length
+//!    h = √(2A / (√3·N)) of an equilateral mesh with N vertices, used both for the boundary
+//!    ([`super::refine`]) and as the interiors' scale.
+//! 2. **One vertex pool.** The refined boundary points, each once (pool points at exactly
+//!    the same position are merged); every region's loops refer to it, so neighbouring
+//!    regions share their boundary vertices and the mesh is watertight.
+//! 3. **Regions.** A region with cycles is triangulated in its chart (section 5.1). A region
+//!    without cycles is a whole ellipsoid: it is cut along its local equator (shared points,
+//!    like an arc) and each half is triangulated in its own chart.
+//! 4. **Budget shared by error.** Adaptive (section 5.3, the default): a max-heap of the
+//!    regions keyed by their worst face error; the worst region gets the next vertex, until
+//!    the budget is spent or every region is within the tolerance. Parametric (section 5.2):
+//!    the interior budget shared by area.
+//! 5. **Join.** Boundary corners map to the pool, interior corners to new vertices; vertex
+//!    normals are the analytic signed normals ([`Ellipsoid::normal`]) averaged over the
+//!    regions a vertex touches; then [`check_mesh`] counts degenerate and flipped triangles
+//!    and reads closedness off the topology.
+//!
+//! The tolerance's bounding box is that of the boundary points and of the whole-ellipsoid
+//! regions (the part of the output the file pins down before any interior is meshed).
 
-use super::{RemeshError, RemeshOptions, Remeshed};
-use crate::representation::Representation;
+use super::chart::RegionChart;
+use super::refine::{refine_arcs, RefineSettings};
+use super::triangulate::{
+    triangulate_parametric, AdaptiveTriangulation, Corner, RegionInput, RegionMesh,
+};
+use super::{RemeshError, RemeshOptions, Remeshed, Scheme};
+use crate::ellipsoid::Ellipsoid;
+use crate::mesh::Mesh;
+use crate::representation::{Representation, Side};
+use glam::DVec3;
+use std::cmp::Ordering;
+use std::collections::{BinaryHeap, HashMap};
 
-/// Remeshes every region and joins them (see [`super::remesh`]).
+/// Fewest points on the equator of a whole-ellipsoid region.
+const MIN_EQUATOR_POINTS: usize = 8;
+
+/// A triangle whose area is below this fraction of the squared bounding-box diagonal counts
+/// as degenerate (f32 output cannot tell it from a zero-area one).
+pub const DEGENERATE_AREA: f64 = 1e-14;
+
+/// What [`check_mesh`] measured on an assembled mesh.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+pub struct MeshCheck {
+    /// Triangles with (near) zero area ([`DEGENERATE_AREA`]).
+    pub degenerate: usize,
+    /// Triangles whose normal disagrees with their ellipsoid's signed normal at their
+    /// centroid.
+    pub flipped: usize,
+    /// Every edge has exactly two faces.
+    pub closed: bool,
+    /// No edge with more than two faces, every vertex a single fan.
+    pub manifold: bool,
+    /// No edge run the same way by its two faces.
+    pub consistently_oriented: bool,
+    /// Loops of border edges.
+    pub border_loops: usize,
+    /// Whether the representation has arcs on the mesh border (when it has none, the mesh
+    /// should be closed).
+    pub has_border_arcs: bool,
+}
+
+impl MeshCheck {
+    /// Whether the mesh has every property it should: no degenerate or flipped triangle,
+    /// manifold and consistently oriented, and closed unless the representation has border
+    /// arcs.
+    pub fn is_clean(&self) -> bool {
+        self.degenerate == 0
+            && self.flipped == 0
+            && self.manifold
+            && self.consistently_oriented
+            && (self.closed || self.has_border_arcs)
+    }
+}
+
+/// Remeshes every region and joins them (see [`super::remesh`] and the module doc).
 pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshed, RemeshError> {
-    let _ = (rep, options);
-    Err(RemeshError::InvalidOption {
-        what: "remesh",
-        value: "not implemented yet".into(),
+    rep.validate()?;
+    options.validate()?;
+    let budget = options.budget(rep);
+    let areas = estimate_areas(rep)?;
+    let total_area: f64 = areas.iter().sum();
+    let spacing = (2.0 * total_area / (3f64.sqrt() * budget as f64)).sqrt();
+    if !(spacing.is_finite() && spacing > 0.0) {
+        return Err(RemeshError::Geometry {
+            what: "surface area or vertex spacing not finite",
+        });
+    }
+    let diagonal = reference_diagonal(rep);
+    if !diagonal.is_finite() {
+        return Err(RemeshError::Geometry {
+            what: "bounding box not finite",
+        });
+    }
+    let tolerance = options.tolerance.map(|t| t * diagonal);
+
+    let minimum = rep.points.len() + MIN_EQUATOR_POINTS * whole_regions(rep).count();
+    if minimum > options.max_vertices {
+        return Err(RemeshError::TooManyVertices {
+            needed: minimum,
+            max: options.max_vertices,
+        });
+    }
+    let settings = RefineSettings {
+        spacing,
+        tolerance: tolerance.unwrap_or(spacing / 16.0),
+        max_new_points: (budget / 4).min(options.max_vertices - minimum),
+        prune: true,
+    };
+    let plan = Plan {
+        rep,
+        options,
+        budget,
+        spacing,
+        tolerance,
+        areas: &areas,
+    };
+    // Attempts, in order: refined and pruned arcs; the stored arcs, pruned (refined points
+    // off the stored polyline can make loops cross where arcs meet at sharp angles or where
+    // the fitted ellipsoids meet far from the stored boundary); the stored arcs as they are
+    // (pruning can shortcut a corner across a neighbouring arc); and the same without
+    // untangling. A clean mesh ends the search; otherwise the best mesh is kept (sound
+    // topology first, then the fewest degenerate and flipped triangles, then the earliest),
+    // else the last error.
+    let stored = RefineSettings {
+        max_new_points: 0,
+        ..settings
+    };
+    let attempts = [
+        (settings, true),
+        (stored, true),
+        (
+            RefineSettings {
+                prune: false,
+                ..stored
+            },
+            true,
+        ),
+        (
+            RefineSettings {
+                prune: false,
+                ..stored
+            },
+            false,
+        ),
+    ];
+    let mut best: Option<((bool, usize), Remeshed)> = None;
+    let mut last_error = None;
+    for (k, (attempt, untangle)) in attempts.iter().enumerate() {
+        if k == 1 && settings.max_new_points == 0 {
+            continue;
+        }
+        match plan.mesh(attempt, *untangle) {
+            Ok(out) => {
+                let c = out.check;
+                if c.is_clean() {
+                    return Ok(out);
+                }
+                let score = (
+                    !(c.manifold && c.consistently_oriented && (c.closed || c.has_border_arcs)),
+                    c.degenerate + c.flipped,
+                );
+                if best.as_ref().is_none_or(|(s, _)| score < *s) {
+                    best = Some((score, out));
+                }
+            }
+            Err(e @ RemeshError::Region { .. }) => last_error = Some(e),
+            Err(e) => return Err(e),
+        }
+    }
+    match (best, last_error) {
+        (Some((_, out)), _) => Ok(out),
+        (None, Some(e)) => Err(e),
+        (None, None) => Err(RemeshError::Geometry {
+            what: "no meshing attempt was made",
+        }),
+    }
+}
+
+/// What every attempt at meshing shares.
+struct Plan<'a> {
+    rep: &'a Representation,
+    options: &'a RemeshOptions,
+    budget: usize,
+    spacing: f64,
+    tolerance: Option<f64>,
+    areas: &'a [f64],
+}
+
+impl Plan<'_> {
+    /// Refines the arcs with `settings` (and untangles them if asked), triangulates every
+    /// piece and joins them.
+    fn mesh(
+        &self,
+        settings: &RefineSettings,
+        untangle_arcs: bool,
+    ) -> Result<Remeshed, RemeshError> {
+        let Plan {
+            rep,
+            options,
+            budget,
+            spacing,
+            tolerance,
+            areas,
+        } = *self;
+        let mut refined = refine_arcs(rep, settings);
+        if untangle_arcs {
+            untangle(rep, &mut refined.arcs, &refined.points);
+        }
+        let mut pool = Pool::new(&refined.points);
+        let mut pieces = Vec::with_capacity(rep.region_count());
+        for (r, cycles) in rep.cycles.iter().enumerate() {
+            let region = r as u32;
+            let Some(ellipsoid) = rep.ellipsoids.get(r) else {
+                continue;
+            };
+            let area = areas.get(r).copied().unwrap_or(0.0);
+            if cycles.is_empty() {
+                let equator_budget = options.max_vertices.saturating_sub(pool.positions.len());
+                let halves = split_whole(region, ellipsoid, spacing, equator_budget, &mut pool)?;
+                pieces.extend(halves.map(|mut p| {
+                    p.area = area / 2.0;
+                    p
+                }));
+                continue;
+            }
+            let mut loops = Vec::with_capacity(cycles.len());
+            for cycle in cycles {
+                let mut lp = Vec::new();
+                for r in &cycle.arcs {
+                    let Some(chain) = refined.arcs.get(r.arc as usize) else {
+                        continue;
+                    };
+                    let closed = rep.arcs.get(r.arc as usize).is_some_and(|a| a.closed);
+                    let ids: Vec<u32> = if r.reversed {
+                        chain.iter().rev().map(|&i| pool.id(i)).collect()
+                    } else {
+                        chain.iter().map(|&i| pool.id(i)).collect()
+                    };
+                    // Consecutive open arcs share their junction: skip each one's first point.
+                    lp.extend(ids.into_iter().skip(usize::from(!closed)));
+                }
+                let lp = without_repeats(lp);
+                // Two arcs that are the same segment between two junctions enclose nothing:
+                // the loop is dropped, and the regions on its other sides, which see the
+                // same segment the other way, are glued directly. Without its outer loop
+                // the region is empty.
+                if lp.len() < 3 {
+                    if cycle.outer {
+                        loops.clear();
+                        break;
+                    }
+                    continue;
+                }
+                loops.push(lp);
+            }
+            if loops.is_empty() {
+                continue;
+            }
+            let loop_points: Vec<Vec<DVec3>> = loops
+                .iter()
+                .map(|l| l.iter().map(|&v| pool.position(v)).collect())
+                .collect();
+            let surface = chart_surface(ellipsoid, &loop_points);
+            let chart = RegionChart::new(region, &surface, &loop_points)?;
+            pieces.push(Piece::new(region, chart, &loops, &pool.positions, area));
+        }
+        if pool.positions.len() > options.max_vertices {
+            return Err(RemeshError::TooManyVertices {
+                needed: pool.positions.len(),
+                max: options.max_vertices,
+            });
+        }
+
+        settle_charts(rep, &mut pieces, spacing / 4.0)?;
+        let meshes = match options.scheme {
+            Scheme::Adaptive => {
+                triangulate_adaptive(&pieces, pool.positions.len(), budget, tolerance, spacing)?
+            }
+            Scheme::Parametric => triangulate_by_area(&pieces, pool.positions.len(), budget)?,
+        };
+        join(rep, options.max_vertices, pool.positions, &pieces, meshes)
+    }
+}
+
+/// Most rounds of [`untangle`].
+const UNTANGLE_ROUNDS: usize = 8;
+
+/// Loops longer than this (in total, per region) are not untangled: the sweep could be
+/// quadratic on a hostile file.
+const UNTANGLE_MAX_POINTS: usize = 200_000;
+
+/// Removes arc points until no region's loops cross in its chart, where that can be done by
+/// dropping points inside arcs (junctions stay).
+///
+/// The chart sees the boundary along rays from the ellipsoid's centre; where the real
+/// surface is not star-shaped from there (common on real meshes, which the ellipsoid only
+/// approximates), the projected boundary can fold over itself. Each crossing drops an
+/// endpoint of one of the crossing segments from the arc it belongs to, for both regions
+/// the arc separates; a few rounds settle it. Deterministic.
+fn untangle(rep: &Representation, chains: &mut [Vec<u32>], points: &[DVec3]) {
+    for _ in 0..UNTANGLE_ROUNDS {
+        // (arc, position in its chain) of the points to drop.
+        let mut drop: Vec<(u32, usize)> = Vec::new();
+        for (r, cycles) in rep.cycles.iter().enumerate() {
+            let Some(e) = rep.ellipsoids.get(r) else {
+                continue;
+            };
+            if !cycles.is_empty() {
+                region_crossings(r as u32, e, cycles, rep, chains, points, &mut drop);
+            }
+        }
+        if drop.is_empty() {
+            return;
+        }
+        drop.sort_unstable();
+        drop.dedup();
+        // Remove from the back of each chain so that positions stay valid.
+        for &(arc, at) in drop.iter().rev() {
+            let closed = rep.arcs.get(arc as usize).is_some_and(|a| a.closed);
+            if let Some(chain) = chains.get_mut(arc as usize) {
+                let min_len = if closed { 3 } else { 2 };
+                if chain.len() > min_len && at < chain.len() {
+                    chain.remove(at);
+                }
+            }
+        }
+    }
+}
+
+/// Where a loop point sits in the refined arcs, if it may be dropped: (arc, position).
+type Droppable = Option<(u32, usize)>;
+
+/// Finds the crossings of one region's loops in its chart and, for each, a point to drop.
+fn region_crossings(
+    region: u32,
+    e: &Ellipsoid,
+    cycles: &[crate::representation::Cycle],
+    rep: &Representation,
+    chains: &[Vec<u32>],
+    points: &[DVec3],
+    drop: &mut Vec<(u32, usize)>,
+) {
+    // Each loop vertex with the (arc, position) it can be dropped as, if any.
+    let mut loops: Vec<Vec<(DVec3, Droppable)>> = Vec::new();
+    for cycle in cycles {
+        let mut lp = Vec::new();
+        for r in &cycle.arcs {
+            let Some(chain) = chains.get(r.arc as usize) else {
+                continue;
+            };
+            let closed = rep.arcs.get(r.arc as usize).is_some_and(|a| a.closed);
+            let n = chain.len();
+            let order: Vec<usize> = if r.reversed {
+                (0..n).rev().collect()
+            } else {
+                (0..n).collect()
+            };
+            for &k in order.iter().skip(usize::from(!closed)) {
+                let removable = closed || (k > 0 && k + 1 < n);
+                let p = chain.get(k).and_then(|&i| points.get(i as usize)).copied();
+                if let Some(p) = p {
+                    lp.push((p, removable.then_some((r.arc, k))));
+                }
+            }
+        }
+        if lp.len() >= 3 {
+            loops.push(lp);
+        }
+    }
+    let total: usize = loops.iter().map(Vec::len).sum();
+    if loops.is_empty() || total > UNTANGLE_MAX_POINTS {
+        return;
+    }
+    let loop_points: Vec<Vec<DVec3>> = loops
+        .iter()
+        .map(|l| l.iter().map(|v| v.0).collect())
+        .collect();
+    let surface = chart_surface(e, &loop_points);
+    let Ok(chart) = RegionChart::new(region, &surface, &loop_points) else {
+        return;
+    };
+    // Segments in the plane: (a, b, which point to drop if it crosses).
+    let mut segments: Vec<(glam::DVec2, glam::DVec2, Droppable)> = Vec::new();
+    for lp in &loops {
+        for (k, &(p, tag)) in lp.iter().enumerate() {
+            let Some(&(q, next_tag)) = lp.get(k + 1).or(lp.first()) else {
+                continue;
+            };
+            let (a, b) = (chart.to_plane(p), chart.to_plane(q));
+            if a.is_finite() && b.is_finite() {
+                segments.push((a, b, tag.or(next_tag)));
+            }
+        }
+    }
+    segments.sort_by(|s, t| s.0.x.min(s.1.x).total_cmp(&t.0.x.min(t.1.x)));
+    for (i, s) in segments.iter().enumerate() {
+        let max_x = s.0.x.max(s.1.x);
+        for t in segments.iter().skip(i + 1) {
+            if t.0.x.min(t.1.x) > max_x {
+                break;
+            }
+            if segments_cross(s.0, s.1, t.0, t.1) {
+                if let Some(tag) = s.2.or(t.2) {
+                    drop.push(tag);
+                }
+            }
+        }
+    }
+}
+
+/// Whether two segments cross at a point inside both (shared endpoints do not count).
+fn segments_cross(p1: glam::DVec2, p2: glam::DVec2, q1: glam::DVec2, q2: glam::DVec2) -> bool {
+    let cross = |a: glam::DVec2, b: glam::DVec2| a.x * b.y - a.y * b.x;
+    let d1 = cross(p2 - p1, q1 - p1);
+    let d2 = cross(p2 - p1, q2 - p1);
+    let d3 = cross(q2 - q1, p1 - q1);
+    let d4 = cross(q2 - q1, p2 - q1);
+    d1 * d2 < 0.0 && d3 * d4 < 0.0
+}
+
+/// Regions without cycles: whole ellipsoids.
+fn whole_regions(rep: &Representation) -> impl Iterator<Item = usize> + '_ {
+    rep.cycles
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| c.is_empty())
+        .map(|(r, _)| r)
+}
+
+/// The global vertex pool: refined boundary points, each position once.
+struct Pool<'a> {
+    refined: &'a [DVec3],
+    /// Refined point index → vertex id (u32::MAX: not yet used).
+    id_of: Vec<u32>,
+    by_position: HashMap<[u64; 3], u32>,
+    positions: Vec<DVec3>,
+}
+
+impl<'a> Pool<'a> {
+    fn new(refined: &'a [DVec3]) -> Pool<'a> {
+        Pool {
+            refined,
+            id_of: vec![u32::MAX; refined.len()],
+            by_position: HashMap::new(),
+            positions: Vec::new(),
+        }
+    }
+
+    /// The vertex of refined point `i` (indices come from [`refine_arcs`], so in range).
+    fn id(&mut self, i: u32) -> u32 {
+        match self.id_of.get(i as usize) {
+            Some(&id) if id != u32::MAX => id,
+            Some(_) => {
+                let p = self.refined.get(i as usize).copied().unwrap_or_default();
+                let id = self.add(p);
+                if let Some(slot) = self.id_of.get_mut(i as usize) {
+                    *slot = id;
+                }
+                id
+            }
+            None => 0,
+        }
+    }
+
+    /// A vertex at `p`: the existing one at exactly this position, or a new one.
+    fn add(&mut self, p: DVec3) -> u32 {
+        // +0.0 and −0.0 are the same position.
+        let key = (p + DVec3::ZERO).to_array().map(f64::to_bits);
+        let next = self.positions.len() as u32;
+        *self.by_position.entry(key).or_insert_with(|| {
+            self.positions.push(p);
+            next
+        })
+    }
+
+    fn position(&self, v: u32) -> DVec3 {
+        self.positions.get(v as usize).copied().unwrap_or_default()
+    }
+}
+
+/// `ids` as a closed loop without consecutive repeats (the last compared with the first).
+fn without_repeats(ids: Vec<u32>) -> Vec<u32> {
+    let mut out: Vec<u32> = Vec::with_capacity(ids.len());
+    for v in ids {
+        if out.last() != Some(&v) {
+            out.push(v);
+        }
+    }
+    while out.len() > 1 && out.first() == out.last() {
+        out.pop();
+    }
+    out
+}
+
+/// One piece to triangulate: a region, or half of a whole-ellipsoid region.
+struct Piece {
+    region: u32,
+    chart: RegionChart,
+    /// Positions of the piece's boundary vertices, local numbering.
+    boundary: Vec<DVec3>,
+    /// Loops in local numbering.
+    loops: Vec<Vec<u32>>,
+    /// Local boundary vertex → pool vertex.
+    global: Vec<u32>,
+    /// Estimated area (model units²).
+    area: f64,
+    /// When the chart is the view from beneath the region ([`Piece::view_from_beneath`]):
+    /// the point the interior points are lifted from onto the region's ellipsoid.
+    beneath: Option<DVec3>,
+}
+
+impl Piece {
+    fn new(
+        region: u32,
+        chart: RegionChart,
+        loops: &[Vec<u32>],
+        positions: &[DVec3],
+        area: f64,
+    ) -> Piece {
+        let mut local: HashMap<u32, u32> = HashMap::new();
+        let mut global = Vec::new();
+        let mut boundary = Vec::new();
+        let loops = loops
+            .iter()
+            .map(|l| {
+                l.iter()
+                    .map(|&v| {
+                        *local.entry(v).or_insert_with(|| {
+                            global.push(v);
+                            boundary.push(positions.get(v as usize).copied().unwrap_or_default());
+                            (global.len() - 1) as u32
+                        })
+                    })
+                    .collect()
+            })
+            .collect();
+        Piece {
+            region,
+            chart,
+            boundary,
+            loops,
+            global,
+            area,
+            beneath: None,
+        }
+    }
+
+    /// The chart seen from beneath the region, for a region whose boundary, projected from
+    /// its ellipsoid's centre, crosses itself (a region that is not star-shaped from there:
+    /// common on real meshes, where the ellipsoid only approximates the surface). The point
+    /// of view lies below the boundary's centroid, against the mean outward normal, twice
+    /// the region's reach deep; the chart surface is the sphere around it through the
+    /// centroid (positive: the mesh's outward side faces away from the point of view).
+    fn view_from_beneath(&self, e: &Ellipsoid) -> Option<Piece> {
+        let n = self.boundary.len();
+        if n == 0 {
+            return None;
+        }
+        let centroid = self.boundary.iter().copied().sum::<DVec3>() / n as f64;
+        let normal = self
+            .boundary
+            .iter()
+            .map(|&p| e.normal(p))
+            .sum::<DVec3>()
+            .try_normalize()?;
+        let reach = self
+            .boundary
+            .iter()
+            .map(|&p| (p - centroid).length())
+            .fold(0.0, f64::max);
+        let origin = centroid - 2.0 * reach * normal;
+        let sphere = Ellipsoid::sphere(origin, 2.0 * reach);
+        if !(sphere.is_valid() && origin.is_finite()) {
+            return None;
+        }
+        let loops: Vec<Vec<DVec3>> = self
+            .loops
+            .iter()
+            .map(|l| {
+                l.iter()
+                    .map(|&i| self.boundary.get(i as usize).copied().unwrap_or_default())
+                    .collect()
+            })
+            .collect();
+        let chart = RegionChart::new(self.region, &sphere, &loops).ok()?;
+        Some(Piece {
+            chart,
+            boundary: self.boundary.clone(),
+            loops: self.loops.clone(),
+            global: self.global.clone(),
+            beneath: Some(origin),
+            ..*self
+        })
+    }
+
+    fn input(&self) -> RegionInput<'_> {
+        RegionInput {
+            region: self.region,
+            chart: &self.chart,
+            boundary: &self.boundary,
+            loops: &self.loops,
+        }
+    }
+
+    /// An interior point of this piece's triangulation on the region's ellipsoid `e`.
+    fn lift(&self, e: &Ellipsoid, p: DVec3) -> DVec3 {
+        if let Some(origin) = self.beneath {
+            // Along the ray from the point of view: the crossing nearest to p.
+            let best = e.intersect_ray(origin, p - origin).and_then(|ts| {
+                ts.into_iter()
+                    .filter(|t| *t > 0.0)
+                    .min_by(|a, b| (a - 1.0).abs().total_cmp(&(b - 1.0).abs()))
+            });
+            return best.map_or(p, |t| origin + t * (p - origin));
+        }
+        if *e != self.chart.ellipsoid {
+            return e.project_radially(p);
+        }
+        p
+    }
+}
+
+/// Replaces the chart of every piece whose boundary-only triangulation fails by the view
+/// from beneath it, if that one triangulates; otherwise returns the first failure.
+fn settle_charts(
+    rep: &Representation,
+    pieces: &mut [Piece],
+    min_spacing: f64,
+) -> Result<(), RemeshError> {
+    for piece in pieces.iter_mut() {
+        let Err(error) = AdaptiveTriangulation::new(&piece.input(), min_spacing) else {
+            continue;
+        };
+        let Some(e) = rep.ellipsoids.get(piece.region as usize) else {
+            return Err(error);
+        };
+        match piece.view_from_beneath(e) {
+            Some(other) if AdaptiveTriangulation::new(&other.input(), min_spacing).is_ok() => {
+                *piece = other;
+            }
+            _ => return Err(error),
+        }
+    }
+    Ok(())
+}
+
+/// How much longer than the region's reach (its boundary's largest distance from the
+/// centre) a radius may be before the chart uses a stand-in ellipsoid.
+const MAX_RADIUS_TO_REACH: f64 = 4.0;
+
+/// The ellipsoid a region's chart and triangulation use: the region's own, unless a radius
+/// is far longer than the region's reach (fits to nearly flat or cylindrical parts give radii
+/// of thousands); the unit-sphere map then squeezes the region into a sliver where quantised
+/// boundary points cross. The stand-in has the same centre, rotation and sign and its radii
+/// capped at [`MAX_RADIUS_TO_REACH`] times the reach: the same rays through the same centre,
+/// spread evenly, so the region's shape in the chart is sound; interior points are moved
+/// back onto the real ellipsoid along their rays when the pieces are joined.
+fn chart_surface(e: &Ellipsoid, loops: &[Vec<DVec3>]) -> Ellipsoid {
+    let reach = loops
+        .iter()
+        .flatten()
+        .map(|&p| (p - e.center).length())
+        .fold(0.0, f64::max);
+    let cap = MAX_RADIUS_TO_REACH * reach;
+    if !(cap.is_finite() && cap > 0.0) || e.radii.max_element() <= cap {
+        return *e;
+    }
+    Ellipsoid {
+        radii: e.radii.min(DVec3::splat(cap)),
+        ..*e
+    }
+}
+
+/// A whole ellipsoid cut along its local equator into two halves sharing the equator's
+/// points, each in its own chart (whose pole is then the other half's pole).
+fn split_whole(
+    region: u32,
+    e: &Ellipsoid,
+    spacing: f64,
+    max_points: usize,
+    pool: &mut Pool<'_>,
+) -> Result<[Piece; 2], RemeshError> {
+    let on_equator = |t: f64| e.from_unit_sphere(DVec3::new(t.cos(), t.sin(), 0.0));
+    let samples = 256;
+    let circumference: f64 = (0..samples)
+        .map(|k| {
+            let t = std::f64::consts::TAU * k as f64 / samples as f64;
+            let t1 = std::f64::consts::TAU * (k + 1) as f64 / samples as f64;
+            (on_equator(t1) - on_equator(t)).length()
+        })
+        .sum();
+    let wanted = (circumference / spacing).ceil();
+    let count = if wanted.is_finite() {
+        (wanted as usize).clamp(MIN_EQUATOR_POINTS, max_points.max(MIN_EQUATOR_POINTS))
+    } else {
+        MIN_EQUATOR_POINTS
+    };
+    let ring: Vec<u32> = (0..count)
+        .map(|k| pool.add(on_equator(std::f64::consts::TAU * k as f64 / count as f64)))
+        .collect();
+    let ring = without_repeats(ring);
+    if ring.len() < 3 {
+        return Err(RemeshError::Region {
+            region,
+            what: "ellipsoid too small to mesh",
+        });
+    }
+    // Increasing angle is counter-clockwise seen from local +z: the northern half is on its
+    // left when the normal points outward (positive sign), the southern half when it points
+    // inward (negative sign).
+    let reversed: Vec<u32> = ring.iter().rev().copied().collect();
+    let (north_loop, south_loop) = match e.sign {
+        crate::ellipsoid::Sign::Positive => (ring, reversed),
+        crate::ellipsoid::Sign::Negative => (reversed, ring),
+    };
+    let half = |lp: Vec<u32>| -> Result<Piece, RemeshError> {
+        let points: Vec<DVec3> = lp.iter().map(|&v| pool.position(v)).collect();
+        let chart = RegionChart::new(region, e, &[points])?;
+        Ok(Piece::new(region, chart, &[lp], &pool.positions, 0.0))
+    };
+    Ok([half(north_loop)?, half(south_loop)?])
+}
+
+/// Adaptive scheme: the budget shared by error through a max-heap of the pieces' worst
+/// errors (section 5.3).
+fn triangulate_adaptive(
+    pieces: &[Piece],
+    boundary_vertices: usize,
+    budget: usize,
+    tolerance: Option<f64>,
+    spacing: f64,
+) -> Result<Vec<RegionMesh>, RemeshError> {
+    let inputs: Vec<RegionInput<'_>> = pieces.iter().map(Piece::input).collect();
+    let mut tris = inputs
+        .iter()
+        .map(|input| AdaptiveTriangulation::new(input, spacing / 4.0))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut heap: BinaryHeap<Worst> = tris
+        .iter()
+        .enumerate()
+        .filter_map(|(i, t)| t.worst_error().map(|error| Worst { error, piece: i }))
+        .collect();
+    let mut total = boundary_vertices;
+    while total < budget {
+        let Some(worst) = heap.pop() else { break };
+        if tolerance.is_some_and(|t| worst.error <= t) {
+            break;
+        }
+        let Some(t) = tris.get_mut(worst.piece) else {
+            continue;
+        };
+        if t.insert_worst() {
+            total += 1;
+        }
+        if let Some(error) = t.worst_error() {
+            heap.push(Worst {
+                error,
+                piece: worst.piece,
+            });
+        }
+    }
+    Ok(tris
+        .into_iter()
+        .map(AdaptiveTriangulation::finish)
+        .collect())
+}
+
+/// A heap entry: the worst error of a piece; ties go to the lower piece index.
+#[derive(Debug, Clone, Copy)]
+struct Worst {
+    error: f64,
+    piece: usize,
+}
+
+impl PartialEq for Worst {
+    fn eq(&self, other: &Self) -> bool {
+        self.cmp(other) == Ordering::Equal
+    }
+}
+
+impl Eq for Worst {}
+
+impl PartialOrd for Worst {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for Worst {
+    fn cmp(&self, other: &Self) -> Ordering {
+        self.error
+            .total_cmp(&other.error)
+            .then_with(|| other.piece.cmp(&self.piece))
+    }
+}
+
+/// Parametric scheme: the interior budget shared by estimated area (largest remainders),
+/// each piece gridded on its own (section 5.2).
+fn triangulate_by_area(
+    pieces: &[Piece],
+    boundary_vertices: usize,
+    budget: usize,
+) -> Result<Vec<RegionMesh>, RemeshError> {
+    let interior = budget.saturating_sub(boundary_vertices);
+    let total: f64 = pieces.iter().map(|p| p.area).sum();
+    let shares: Vec<f64> = pieces
+        .iter()
+        .map(|p| {
+            if total > 0.0 {
+                interior as f64 * p.area / total
+            } else {
+                interior as f64 / pieces.len().max(1) as f64
+            }
+        })
+        .collect();
+    let mut counts: Vec<usize> = shares.iter().map(|s| s.floor() as usize).collect();
+    let mut left = interior.saturating_sub(counts.iter().sum());
+    let mut order: Vec<usize> = (0..pieces.len()).collect();
+    order.sort_by(|&a, &b| {
+        let ra = shares[a] - shares[a].floor();
+        let rb = shares[b] - shares[b].floor();
+        rb.total_cmp(&ra).then(a.cmp(&b))
+    });
+    for i in order {
+        if left == 0 {
+            break;
+        }
+        if let Some(c) = counts.get_mut(i) {
+            *c += 1;
+            left -= 1;
+        }
+    }
+    // The grid gives about, not exactly, the asked count: each piece's request is scaled by
+    // its own miss and the pieces gridded again, a few times, keeping the closest total.
+    let mut best: Option<(usize, Vec<RegionMesh>)> = None;
+    let mut requests = counts;
+    for _ in 0..PARAMETRIC_ROUNDS {
+        let meshes = pieces
+            .iter()
+            .zip(&requests)
+            .map(|(p, &n)| triangulate_parametric(&p.input(), n))
+            .collect::<Result<Vec<_>, _>>()?;
+        let made: usize = meshes.iter().map(|m| m.interior.len()).sum();
+        let miss = made.abs_diff(interior);
+        // A grid far over its request is not asked again (each round costs its size).
+        if made > 2 * interior + 64 {
+            if best.is_none() {
+                best = Some((miss, meshes));
+            }
+            break;
+        }
+        if best.as_ref().is_none_or(|(m, _)| miss < *m) {
+            let done = miss * 400 <= interior.max(1);
+            for ((request, m), share) in requests.iter_mut().zip(&meshes).zip(&shares) {
+                // A piece the grid nearly misses must not ask for an unbounded count.
+                let got = m.interior.len().max(1) as f64;
+                let cap = 4.0 * share + 16.0;
+                *request = (*request as f64 * share / got).min(cap).round() as usize;
+            }
+            best = Some((miss, meshes));
+            if done {
+                break;
+            }
+        } else {
+            break;
+        }
+    }
+    Ok(best.map(|(_, m)| m).unwrap_or_default())
+}
+
+/// Most gridding rounds of the parametric scheme.
+const PARAMETRIC_ROUNDS: usize = 4;
+
+/// Joins the pieces' triangles into one mesh with analytic normals, then checks it.
+fn join(
+    rep: &Representation,
+    max_vertices: usize,
+    boundary: Vec<DVec3>,
+    pieces: &[Piece],
+    meshes: Vec<RegionMesh>,
+) -> Result<Remeshed, RemeshError> {
+    let mut positions = boundary;
+    let mut faces = Vec::new();
+    let mut face_regions = Vec::new();
+    for (piece, m) in pieces.iter().zip(&meshes) {
+        let first_interior = positions.len();
+        match rep.ellipsoids.get(piece.region as usize) {
+            // Meshed on a stand-in surface: the points go back onto the region's ellipsoid.
+            Some(e) => positions.extend(m.interior.iter().map(|&p| piece.lift(e, p))),
+            None => positions.extend_from_slice(&m.interior),
+        }
+        for tri in &m.triangles {
+            let mut face = [0u32; 3];
+            let mut ok = true;
+            for (slot, corner) in face.iter_mut().zip(tri) {
+                let v = match *corner {
+                    Corner::Boundary(i) => piece.global.get(i as usize).copied(),
+                    Corner::Interior(i) => u32::try_from(first_interior + i as usize).ok(),
+                };
+                match v {
+                    Some(v) => *slot = v,
+                    None => ok = false,
+                }
+            }
+            if !ok || face[0] == face[1] || face[1] == face[2] || face[0] == face[2] {
+                return Err(RemeshError::Region {
+                    region: piece.region,
+                    what: "the triangulation returned an invalid triangle",
+                });
+            }
+            faces.push(face);
+            face_regions.push(piece.region);
+        }
+    }
+    let (positions, faces) = drop_unused(positions, faces);
+    if positions.len() > max_vertices {
+        return Err(RemeshError::TooManyVertices {
+            needed: positions.len(),
+            max: max_vertices,
+        });
+    }
+    let normals = vertex_normals(rep, &positions, &faces, &face_regions);
+    let mesh = Mesh::new(positions, faces)?;
+    let check = check_mesh(rep, &mesh, &face_regions);
+    Ok(Remeshed {
+        mesh,
+        normals,
+        face_regions,
+        check,
     })
+}
+
+/// Removes vertices no face uses, renumbering the rest in order.
+fn drop_unused(positions: Vec<DVec3>, mut faces: Vec<[u32; 3]>) -> (Vec<DVec3>, Vec<[u32; 3]>) {
+    let mut new_index = vec![u32::MAX; positions.len()];
+    for f in &faces {
+        for &v in f {
+            if let Some(slot) = new_index.get_mut(v as usize) {
+                *slot = 0;
+            }
+        }
+    }
+    let mut kept = Vec::with_capacity(positions.len());
+    for (slot, p) in new_index.iter_mut().zip(&positions) {
+        if *slot == 0 {
+            *slot = kept.len() as u32;
+            kept.push(*p);
+        }
+    }
+    for f in &mut faces {
+        for v in f {
+            *v = new_index.get(*v as usize).copied().unwrap_or(0);
+        }
+    }
+    (kept, faces)
+}
+
+/// Per vertex, the signed ellipsoid normals of the regions it touches, averaged and
+/// normalised (faces are grouped by region, so each region counts once per vertex).
+fn vertex_normals(
+    rep: &Representation,
+    positions: &[DVec3],
+    faces: &[[u32; 3]],
+    face_regions: &[u32],
+) -> Vec<DVec3> {
+    let mut sum = vec![DVec3::ZERO; positions.len()];
+    let mut last = vec![u32::MAX; positions.len()];
+    let mut first = vec![DVec3::ZERO; positions.len()];
+    for (f, &r) in faces.iter().zip(face_regions) {
+        let Some(e) = rep.ellipsoids.get(r as usize) else {
+            continue;
+        };
+        for &v in f {
+            let v = v as usize;
+            let (Some(s), Some(l), Some(p)) = (sum.get_mut(v), last.get_mut(v), positions.get(v))
+            else {
+                continue;
+            };
+            if *l != r {
+                let n = e.normal(*p);
+                if *l == u32::MAX {
+                    if let Some(fst) = first.get_mut(v) {
+                        *fst = n;
+                    }
+                }
+                *l = r;
+                *s += n;
+            }
+        }
+    }
+    sum.iter()
+        .zip(&first)
+        .map(|(s, f)| s.try_normalize().or(f.try_normalize()).unwrap_or(DVec3::Z))
+        .collect()
+}
+
+/// Counts degenerate and flipped triangles and reads closedness and orientation off the
+/// topology.
+pub fn check_mesh(rep: &Representation, mesh: &Mesh, face_regions: &[u32]) -> MeshCheck {
+    let diagonal = mesh.bounding_box().map_or(0.0, |b| b.diagonal());
+    let min_area = DEGENERATE_AREA * diagonal * diagonal;
+    let mut degenerate = 0;
+    let mut flipped = 0;
+    for (f, &r) in face_regions.iter().enumerate().take(mesh.face_count()) {
+        let area = mesh.face_area(f);
+        if area.is_nan() || area <= min_area {
+            degenerate += 1;
+            continue;
+        }
+        if let Some(e) = rep.ellipsoids.get(r as usize) {
+            if mesh.face_normal(f).dot(e.normal(mesh.face_centroid(f))) < 0.0 {
+                flipped += 1;
+            }
+        }
+    }
+    let t = mesh.topology();
+    MeshCheck {
+        degenerate,
+        flipped,
+        closed: t.is_closed(),
+        manifold: t.is_manifold(),
+        consistently_oriented: t.is_consistently_oriented(),
+        border_loops: t.boundary_loops().len(),
+        has_border_arcs: rep.arcs.iter().any(|a| a.right == Side::Border),
+    }
+}
+
+/// The bounding-box diagonal the tolerance is a fraction of: the box of the boundary points
+/// and of the whole-ellipsoid regions.
+fn reference_diagonal(rep: &Representation) -> f64 {
+    let mut corners: Vec<DVec3> = rep.points.clone();
+    for r in whole_regions(rep) {
+        if let Some(e) = rep.ellipsoids.get(r) {
+            let half = ellipsoid_half_extent(e);
+            corners.push(e.center - half);
+            corners.push(e.center + half);
+        }
+    }
+    crate::mesh::Aabb::from_points(&corners).map_or(0.0, |b| b.diagonal())
+}
+
+/// Half the size of an ellipsoid's axis-aligned bounding box.
+fn ellipsoid_half_extent(e: &Ellipsoid) -> DVec3 {
+    let m = glam::DMat3::from_quat(e.rotation);
+    let scaled = [
+        m.x_axis * e.radii.x,
+        m.y_axis * e.radii.y,
+        m.z_axis * e.radii.z,
+    ];
+    DVec3::new(
+        scaled.iter().map(|a| a.x * a.x).sum::<f64>().sqrt(),
+        scaled.iter().map(|a| a.y * a.y).sum::<f64>().sqrt(),
+        scaled.iter().map(|a| a.z * a.z).sum::<f64>().sqrt(),
+    )
+}
+
+/// Per region, an estimate of its area: the solid angle its loops enclose on the unit sphere
+/// (seen from the centre of the region's ellipsoid) times the mean area scale of the map to
+/// the ellipsoid at its boundary points; a whole ellipsoid's area by Thomsen's formula.
+fn estimate_areas(rep: &Representation) -> Result<Vec<f64>, RemeshError> {
+    let mut areas = Vec::with_capacity(rep.region_count());
+    for (r, e) in rep.ellipsoids.iter().enumerate() {
+        let cycles = rep.cycles.get(r).map_or(&[][..], Vec::as_slice);
+        let area = if cycles.is_empty() {
+            ellipsoid_area(e)
+        } else {
+            let mut loops: Vec<Vec<DVec3>> = Vec::with_capacity(cycles.len());
+            for c in cycles {
+                let mut lp = Vec::new();
+                for a in &c.arcs {
+                    let Some(mut pts) = rep.arc_positions(a.arc as usize) else {
+                        continue;
+                    };
+                    if a.reversed {
+                        pts.reverse();
+                    }
+                    lp.extend(pts);
+                }
+                loops.push(lp);
+            }
+            region_area(e, &loops)
+        };
+        if !area.is_finite() {
+            return Err(RemeshError::Geometry {
+                what: "region area not finite",
+            });
+        }
+        areas.push(area);
+    }
+    Ok(areas)
+}
+
+/// Knud Thomsen's approximation of an ellipsoid's surface area (relative error < 1.1 %).
+pub fn ellipsoid_area(e: &Ellipsoid) -> f64 {
+    const P: f64 = 1.6075;
+    let (a, b, c) = (e.radii.x.powf(P), e.radii.y.powf(P), e.radii.z.powf(P));
+    4.0 * std::f64::consts::PI * ((a * b + a * c + b * c) / 3.0).powf(1.0 / P)
+}
+
+/// The estimated area of the part of `e` that `loops` (region on the left) bound.
+fn region_area(e: &Ellipsoid, loops: &[Vec<DVec3>]) -> f64 {
+    let dirs: Vec<Vec<DVec3>> = loops
+        .iter()
+        .map(|l| {
+            l.iter()
+                .filter_map(|&p| e.to_unit_sphere(p).try_normalize())
+                .collect()
+        })
+        .collect();
+    let count: usize = dirs.iter().map(Vec::len).sum();
+    if count == 0 {
+        return 0.0;
+    }
+    // Apex of the fan: away from the boundary.
+    let mean: DVec3 = dirs.iter().flatten().copied().sum();
+    let apex = (-mean).try_normalize().unwrap_or(DVec3::Z);
+    let mut solid = 0.0;
+    for l in &dirs {
+        for (i, &u) in l.iter().enumerate() {
+            let Some(&w) = l.get(i + 1).or(l.first()) else {
+                continue;
+            };
+            // Van Oosterom & Strackee: the signed solid angle of the triangle (apex, u, w).
+            let num = apex.dot(u.cross(w));
+            let den = 1.0 + apex.dot(u) + apex.dot(w) + u.dot(w);
+            solid += 2.0 * num.atan2(den);
+        }
+    }
+    // The fan covers the apex's side of the loops: positively if the region (on the
+    // loops' left seen from outside) is that side, else negatively its complement.
+    let four_pi = 4.0 * std::f64::consts::PI;
+    let mut sphere_area = e.sign.factor() * solid;
+    if sphere_area < 0.0 {
+        sphere_area += four_pi;
+    }
+    let sphere_area = sphere_area.clamp(0.0, four_pi);
+    let abc = e.radii.x * e.radii.y * e.radii.z;
+    let scale: f64 = dirs
+        .iter()
+        .flatten()
+        .map(|u| abc * (*u / e.radii).length())
+        .sum::<f64>()
+        / count as f64;
+    sphere_area * scale
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_small_cap_has_the_area_of_a_cap() {
+        // A circle of angular radius 0.3 around +x on a sphere of radius 2, counter-clockwise
+        // seen from outside: the cap 2π(1 − cos θ)·r².
+        let e = Ellipsoid::sphere(DVec3::ZERO, 2.0);
+        let theta: f64 = 0.3;
+        let lp: Vec<DVec3> = (0..400)
+            .map(|k| {
+                let t = std::f64::consts::TAU * k as f64 / 400.0;
+                2.0 * DVec3::new(theta.cos(), theta.sin() * t.cos(), theta.sin() * t.sin())
+            })
+            .collect();
+        let cap = std::f64::consts::TAU * (1.0 - theta.cos()) * 4.0;
+        let a = region_area(&e, std::slice::from_ref(&lp));
+        assert!((a - cap).abs() < 1e-3 * cap, "{a} vs {cap}");
+        // Walked the other way, the region is the rest of the sphere.
+        let rev: Vec<DVec3> = lp.iter().rev().copied().collect();
+        let rest = 16.0 * std::f64::consts::PI - cap;
+        let a = region_area(&e, &[rev]);
+        assert!((a - rest).abs() < 1e-3 * rest, "{a} vs {rest}");
+    }
+
+    #[test]
+    fn thomsen_is_exact_on_spheres() {
+        let e = Ellipsoid::sphere(DVec3::ONE, 3.0);
+        let exact = 4.0 * std::f64::consts::PI * 9.0;
+        assert!((ellipsoid_area(&e) - exact).abs() < 1e-9 * exact);
+    }
+
+    #[test]
+    fn loops_lose_consecutive_repeats() {
+        assert_eq!(without_repeats(vec![1, 1, 2, 3, 3, 1]), vec![1, 2, 3]);
+        assert_eq!(without_repeats(vec![4, 4]), vec![4]);
+    }
+
+    #[test]
+    fn options_are_validated() {
+        let rep = crate::format::sample::three_regions_two_junctions();
+        for bad in [
+            RemeshOptions {
+                vertices: Some(0),
+                ..RemeshOptions::default()
+            },
+            RemeshOptions {
+                tolerance: Some(-1.0),
+                ..RemeshOptions::default()
+            },
+            RemeshOptions {
+                tolerance: Some(f64::NAN),
+                ..RemeshOptions::default()
+            },
+            RemeshOptions {
+                vertices: Some(100),
+                max_vertices: 10,
+                ..RemeshOptions::default()
+            },
+        ] {
+            assert!(
+                matches!(assemble(&rep, &bad), Err(RemeshError::InvalidOption { .. })),
+                "{bad:?}"
+            );
+        }
+    }
 }

@@ -70,6 +70,49 @@ impl Default for RemeshOptions {
     }
 }
 
+impl RemeshOptions {
+    /// Checks every option: a budget of at least one vertex (and no more than
+    /// `max_vertices`), a finite positive tolerance, `max_vertices` at least 1.
+    pub fn validate(&self) -> Result<(), RemeshError> {
+        let invalid = |what, value: String| Err(RemeshError::InvalidOption { what, value });
+        if self.max_vertices == 0 {
+            return invalid("max_vertices", "0 (must be at least 1)".into());
+        }
+        match self.vertices {
+            Some(0) => return invalid("vertices", "0 (must be at least 1)".into()),
+            Some(n) if n > self.max_vertices => {
+                return invalid(
+                    "vertices",
+                    format!("{n} (more than the maximum of {})", self.max_vertices),
+                )
+            }
+            _ => {}
+        }
+        if let Some(t) = self.tolerance {
+            if !(t.is_finite() && t > 0.0) {
+                return invalid(
+                    "tolerance",
+                    format!("{t} (must be a positive fraction of the bounding-box diagonal)"),
+                );
+            }
+        }
+        Ok(())
+    }
+
+    /// The vertex budget for `rep`: the option, else the file's suggestion, else
+    /// [`DEFAULT_VERTICES`]; capped at `max_vertices`, at least 1.
+    pub fn budget(&self, rep: &Representation) -> usize {
+        let suggested = rep
+            .metadata
+            .suggested_vertices
+            .map(|n| usize::try_from(n).unwrap_or(usize::MAX));
+        self.vertices
+            .or(suggested)
+            .unwrap_or(DEFAULT_VERTICES)
+            .clamp(1, self.max_vertices.max(1))
+    }
+}
+
 /// A remeshed representation.
 #[derive(Debug, Clone)]
 pub struct Remeshed {
@@ -80,6 +123,8 @@ pub struct Remeshed {
     pub normals: Vec<DVec3>,
     /// Per face, the region it belongs to.
     pub face_regions: Vec<u32>,
+    /// What was measured on the result.
+    pub check: assemble::MeshCheck,
 }
 
 /// Why a representation could not be remeshed.
@@ -105,12 +150,31 @@ pub enum RemeshError {
         /// Its value, as text.
         value: String,
     },
+    /// The geometry cannot be meshed at a usable scale (e.g. radii so large that areas or
+    /// spacings overflow).
+    #[error("geometry out of range: {what}")]
+    Geometry {
+        /// What overflowed.
+        what: &'static str,
+    },
+    /// The representation needs more vertices than the options allow (its boundary points
+    /// alone, plus a minimal tessellation of each closed ellipsoid).
+    #[error("needs at least {needed} vertices, more than the maximum of {max}")]
+    TooManyVertices {
+        /// The fewest vertices this representation can be meshed with.
+        needed: usize,
+        /// [`RemeshOptions::max_vertices`].
+        max: usize,
+    },
     /// The assembled mesh was refused (a bug: reported, never written).
     #[error("internal error, the assembled mesh is invalid: {0}")]
     Mesh(#[from] MeshError),
 }
 
-/// Remeshes a representation (validated first).
+/// Remeshes a representation (validated first, options too): refines the boundary arcs
+/// ([`refine`]), maps each region to its chart ([`chart`]), triangulates every region
+/// ([`triangulate`]) sharing the vertex budget among them by their error, and joins them
+/// into one mesh ([`assemble`]). Deterministic: the same input gives the same mesh.
 pub fn remesh(rep: &Representation, options: &RemeshOptions) -> Result<Remeshed, RemeshError> {
     assemble::assemble(rep, options)
 }

@@ -1,2 +1,448 @@
 //! Boundary arcs refined on the intersection curve of the two ellipsoids they separate
 //! (Simari & Singh 2005, section 4.1: relaxed boundaries lie on these intersections).
+//!
+//! A stored arc may be coarse (simplified by [`Representation::simplify_arcs`]) while the
+//! regions on either side are meshed finely. Each arc is refined once, into a polyline both
+//! regions use, so that the assembled mesh stays watertight (issue 6, item 5):
+//!
+//! - a segment is split when it is longer than the target spacing `h` (the edge length the
+//!   vertex budget gives the interiors, so boundary and interior densities match), or when
+//!   the curve strays from its chord by more than the tolerance;
+//! - the new point is the chord midpoint projected onto the curve {f₁ = 0, f₂ = 0} of the
+//!   two ellipsoids' implicit functions by Newton's method for underdetermined systems
+//!   (x ← x − Jᵀ(JJᵀ)⁻¹f), kept only if it converges close to the chord; fitted ellipsoids
+//!   need not meet there, and then the midpoint of the two radial projections is used;
+//! - an arc on the mesh border (one region) gets radial projections onto its one ellipsoid;
+//! - stored points (junctions included) are never moved.
+//!
+//! The work is bounded whatever the file: each stored segment is split at most
+//! [`MAX_DEPTH`] times deep, and at most `max_new_points` points are added in all (the
+//! spacing is widened first so that the spacing rule alone stays within that cap).
+
+use crate::ellipsoid::Ellipsoid;
+use crate::representation::{Representation, Side};
+use glam::DVec3;
+
+/// Deepest bisection of one stored segment (at most 2^MAX_DEPTH − 1 new points in it).
+pub const MAX_DEPTH: u32 = 12;
+
+/// Newton iterations of [`project_to_intersection`].
+const NEWTON_ITERATIONS: usize = 12;
+
+/// |f| (dimensionless: |u|² − 1) below which a Newton iterate is on both surfaces.
+const NEWTON_RESIDUAL: f64 = 1e-10;
+
+/// How the arcs are refined.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RefineSettings {
+    /// Target spacing h between consecutive boundary points, in model units.
+    pub spacing: f64,
+    /// Largest distance (model units) allowed between a segment's midpoint and the curve
+    /// before it is split; segments shorter than a quarter of the spacing are not split for
+    /// it.
+    pub tolerance: f64,
+    /// Most points added over all arcs.
+    pub max_new_points: usize,
+    /// Whether to drop the points both neighbouring charts see as convex
+    /// ([`prune_double_ears`]).
+    pub prune: bool,
+}
+
+/// The refined arcs: one pool of points shared by every arc.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RefinedBoundary {
+    /// The representation's points (unchanged, same indices) followed by the new ones.
+    pub points: Vec<DVec3>,
+    /// For each arc of the representation, its refined chain as indices into `points`,
+    /// with the arc's conventions (a closed arc does not repeat its first point).
+    pub arcs: Vec<Vec<u32>>,
+    /// How many points were added.
+    pub added: usize,
+}
+
+/// Refines every arc of `rep` (see the module documentation). Deterministic.
+pub fn refine_arcs(rep: &Representation, settings: &RefineSettings) -> RefinedBoundary {
+    let mut points = rep.points.clone();
+    let mut arcs = Vec::with_capacity(rep.arcs.len());
+    let spacing = widened_spacing(rep, settings);
+    let mut budget = settings.max_new_points;
+    for arc in &rep.arcs {
+        let left = rep.ellipsoids.get(arc.left as usize);
+        let right = match arc.right {
+            Side::Region(r) => rep.ellipsoids.get(r as usize),
+            Side::Border => None,
+        };
+        let Some(left) = left else {
+            arcs.push(arc.points.clone());
+            continue;
+        };
+        let curve = Curve {
+            first: left,
+            second: right,
+        };
+        let mut chain = Vec::with_capacity(arc.points.len());
+        let n = arc.points.len();
+        let segments = if arc.closed { n } else { n.saturating_sub(1) };
+        for k in 0..n {
+            let i = arc.points[k];
+            chain.push(i);
+            if k >= segments {
+                continue;
+            }
+            let j = arc.points[(k + 1) % n];
+            let (Some(&a), Some(&b)) = (rep.points.get(i as usize), rep.points.get(j as usize))
+            else {
+                continue;
+            };
+            let mut split = Split {
+                curve: &curve,
+                spacing,
+                tolerance: settings.tolerance,
+                budget: &mut budget,
+                points: &mut points,
+                chain: &mut chain,
+            };
+            split.segment(a, b, 0);
+        }
+        if let (Some(right), true) = (right, settings.prune) {
+            prune_double_ears(&mut chain, &points, arc.closed, left, right);
+        }
+        arcs.push(chain);
+    }
+    let added = points.len() - rep.points.len();
+    RefinedBoundary {
+        points,
+        arcs,
+        added,
+    }
+}
+
+/// Whether the corner `a → b → c` turns towards the region on its left, as that region's
+/// chart sees it: the orientation of the three points' radial projections on `e` (what
+/// the stereographic projection preserves), seen with the mesh's outward normal up.
+fn turns_left(e: &Ellipsoid, a: DVec3, b: DVec3, c: DVec3) -> bool {
+    let (u, v, w) = (a - e.center, b - e.center, c - e.center);
+    e.sign.factor() * u.dot(v.cross(w)) > 0.0
+}
+
+/// Removes the chain points at which both regions see a convex corner.
+///
+/// Boundary points need not lie on either ellipsoid, and each region's chart projects them
+/// radially from its own centre: at a nearly straight point the two charts can disagree on
+/// which side the corner bends to. When both see it bending away from them, the thin
+/// triangle (previous, point, next) would be inside both regions and the glued mesh would
+/// not be manifold. Dropping the point (from the one chain both regions use) removes the
+/// conflict; it is nearly on the chord of its neighbours. Junctions stay.
+pub fn prune_double_ears(
+    chain: &mut Vec<u32>,
+    points: &[DVec3],
+    closed: bool,
+    left: &Ellipsoid,
+    right: &Ellipsoid,
+) {
+    let at = |i: u32| points.get(i as usize).copied().unwrap_or_default();
+    let conflict = |a: u32, b: u32, c: u32| {
+        let (a, b, c) = (at(a), at(b), at(c));
+        turns_left(left, a, b, c) && turns_left(right, c, b, a)
+    };
+    // One scan with backtracking: after a removal the previous point is checked again.
+    let mut kept: Vec<u32> = Vec::with_capacity(chain.len());
+    for &next in chain.iter() {
+        while kept.len() >= 2 {
+            let (a, b) = (kept[kept.len() - 2], kept[kept.len() - 1]);
+            if conflict(a, b, next) {
+                kept.pop();
+            } else {
+                break;
+            }
+        }
+        kept.push(next);
+    }
+    if closed {
+        // The corners across the seam (first point kept as the loop's anchor).
+        let mut guard = kept.len();
+        while kept.len() > 3 && guard > 0 {
+            guard -= 1;
+            let n = kept.len();
+            if conflict(kept[n - 2], kept[n - 1], kept[0]) {
+                kept.pop();
+            } else if conflict(kept[n - 1], kept[0], kept[1]) && n > 3 {
+                kept.remove(0);
+            } else {
+                break;
+            }
+        }
+    }
+    let min_len = if closed { 3 } else { 2 };
+    if kept.len() >= min_len {
+        *chain = kept;
+    }
+}
+
+/// The spacing, widened so that splitting every segment to it adds at most
+/// `max_new_points` points.
+fn widened_spacing(rep: &Representation, settings: &RefineSettings) -> f64 {
+    let mut needed = 0.0;
+    for arc in &rep.arcs {
+        let n = arc.points.len();
+        let segments = if arc.closed { n } else { n.saturating_sub(1) };
+        for k in 0..segments {
+            let a = arc.points.get(k).and_then(|&i| rep.points.get(i as usize));
+            let b = arc
+                .points
+                .get((k + 1) % n)
+                .and_then(|&i| rep.points.get(i as usize));
+            if let (Some(a), Some(b)) = (a, b) {
+                needed += ((*a - *b).length() / settings.spacing).floor();
+            }
+        }
+    }
+    let cap = settings.max_new_points as f64;
+    if needed.is_finite() && needed <= cap {
+        settings.spacing
+    } else if needed.is_finite() && cap > 0.0 {
+        settings.spacing * (needed / cap) * 1.001
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// The curve an arc lies on: the intersection of two ellipsoids, or one ellipsoid.
+struct Curve<'a> {
+    first: &'a Ellipsoid,
+    second: Option<&'a Ellipsoid>,
+}
+
+impl Curve<'_> {
+    /// A point of the curve near the chord `a`–`b`'s midpoint (see the module doc).
+    fn point_between(&self, a: DVec3, b: DVec3) -> DVec3 {
+        let mid = 0.5 * (a + b);
+        let chord = (b - a).length();
+        let near = |p: DVec3, reach: f64| p.is_finite() && (p - mid).length() <= reach * chord;
+        if let Some(second) = self.second {
+            if let Some(p) = project_to_intersection(self.first, second, mid) {
+                if near(p, 0.5) {
+                    return p;
+                }
+            }
+            let p = 0.5 * (self.first.project_radially(mid) + second.project_radially(mid));
+            if near(p, 0.5) {
+                return p;
+            }
+        } else {
+            let p = self.first.project_radially(mid);
+            if near(p, 0.5) {
+                return p;
+            }
+        }
+        mid
+    }
+}
+
+/// Recursive bisection of one stored segment.
+struct Split<'a, 'c> {
+    curve: &'a Curve<'c>,
+    spacing: f64,
+    tolerance: f64,
+    budget: &'a mut usize,
+    points: &'a mut Vec<DVec3>,
+    chain: &'a mut Vec<u32>,
+}
+
+impl Split<'_, '_> {
+    /// Appends to the chain the points strictly between `a` and `b` (in order).
+    fn segment(&mut self, a: DVec3, b: DVec3, depth: u32) {
+        if depth >= MAX_DEPTH || *self.budget == 0 {
+            return;
+        }
+        let length = (b - a).length();
+        if !length.is_finite() || length <= 0.0 {
+            return;
+        }
+        let too_long = length > self.spacing;
+        if !too_long && length <= 0.25 * self.spacing {
+            return;
+        }
+        let m = self.curve.point_between(a, b);
+        let strays = (m - 0.5 * (a + b)).length() > self.tolerance;
+        if !(too_long || strays) {
+            return;
+        }
+        let Ok(index) = u32::try_from(self.points.len()) else {
+            return;
+        };
+        *self.budget -= 1;
+        self.points.push(m);
+        self.segment(a, m, depth + 1);
+        self.chain.push(index);
+        self.segment(m, b, depth + 1);
+    }
+}
+
+/// Newton projection of `p` onto the intersection curve of two ellipsoids' surfaces:
+/// x ← x − Jᵀ(JJᵀ)⁻¹f with f = (|u₁|² − 1, |u₂|² − 1). `None` when the surfaces are
+/// (nearly) tangent along the way or the iteration does not converge.
+pub fn project_to_intersection(e1: &Ellipsoid, e2: &Ellipsoid, p: DVec3) -> Option<DVec3> {
+    // f and ∇f of |u|² − 1 with u = R⁻¹(x − c)/r: ∇f = 2 R (u / r).
+    let eval = |e: &Ellipsoid, x: DVec3| {
+        let u = e.to_unit_sphere(x);
+        (u.length_squared() - 1.0, 2.0 * (e.rotation * (u / e.radii)))
+    };
+    let mut x = p;
+    for _ in 0..NEWTON_ITERATIONS {
+        let (f1, g1) = eval(e1, x);
+        let (f2, g2) = eval(e2, x);
+        if f1.abs() < NEWTON_RESIDUAL && f2.abs() < NEWTON_RESIDUAL {
+            return x.is_finite().then_some(x);
+        }
+        let (a, b, d) = (g1.dot(g1), g1.dot(g2), g2.dot(g2));
+        let det = a * d - b * b;
+        // Parallel gradients: the surfaces touch, the curve is not defined there.
+        if !det.is_finite() || det <= 1e-10 * a * d {
+            return None;
+        }
+        let l1 = (d * f1 - b * f2) / det;
+        let l2 = (a * f2 - b * f1) / det;
+        x -= l1 * g1 + l2 * g2;
+        if !x.is_finite() {
+            return None;
+        }
+    }
+    let (f1, _) = eval(e1, x);
+    let (f2, _) = eval(e2, x);
+    (f1.abs() < NEWTON_RESIDUAL && f2.abs() < NEWTON_RESIDUAL).then_some(x)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::representation::{Arc, ArcRef, Cycle, Metadata};
+
+    /// Two unit spheres whose centres are 1 apart meet on a circle of radius √3/2 in the
+    /// plane x = 0.5.
+    fn two_spheres(points: Vec<DVec3>) -> Representation {
+        let n = points.len() as u32;
+        Representation {
+            ellipsoids: vec![
+                Ellipsoid::sphere(DVec3::ZERO, 1.0),
+                Ellipsoid::sphere(DVec3::X, 1.0),
+            ],
+            points,
+            arcs: vec![Arc {
+                points: (0..n).collect(),
+                closed: true,
+                left: 0,
+                right: Side::Region(1),
+            }],
+            cycles: vec![
+                vec![Cycle {
+                    arcs: vec![ArcRef {
+                        arc: 0,
+                        reversed: false,
+                    }],
+                    outer: true,
+                }],
+                vec![Cycle {
+                    arcs: vec![ArcRef {
+                        arc: 0,
+                        reversed: true,
+                    }],
+                    outer: true,
+                }],
+            ],
+            metadata: Metadata::default(),
+        }
+    }
+
+    fn circle_point(t: f64) -> DVec3 {
+        let r = 0.75f64.sqrt();
+        DVec3::new(0.5, r * t.cos(), r * t.sin())
+    }
+
+    #[test]
+    fn newton_lands_on_both_surfaces() {
+        let e1 = Ellipsoid::sphere(DVec3::ZERO, 1.0);
+        let e2 = Ellipsoid::sphere(DVec3::X, 1.0);
+        let p = project_to_intersection(&e1, &e2, DVec3::new(0.4, 0.5, 0.3)).unwrap();
+        assert!(
+            e1.implicit(p).abs() < 1e-9 && e2.implicit(p).abs() < 1e-9,
+            "{p}"
+        );
+        // Concentric spheres never meet.
+        let e3 = Ellipsoid::sphere(DVec3::ZERO, 2.0);
+        assert_eq!(
+            project_to_intersection(&e1, &e3, DVec3::new(1.5, 0.0, 0.0)),
+            None
+        );
+    }
+
+    #[test]
+    fn a_coarse_loop_is_refined_on_the_intersection_circle() {
+        let stored: Vec<DVec3> = (0..3)
+            .map(|k| circle_point(std::f64::consts::TAU * k as f64 / 3.0))
+            .collect();
+        let rep = two_spheres(stored.clone());
+        let settings = RefineSettings {
+            spacing: 0.1,
+            tolerance: 1e-3,
+            max_new_points: 10_000,
+            prune: true,
+        };
+        let refined = refine_arcs(&rep, &settings);
+        assert_eq!(&refined.points[..3], &stored[..]);
+        let chain = &refined.arcs[0];
+        assert_eq!(chain.len(), 3 + refined.added);
+        // Circumference 2π·0.866 ≈ 5.44: about 54 segments of at most 0.1.
+        assert!((48..=100).contains(&chain.len()), "{}", chain.len());
+        for w in 0..chain.len() {
+            let a = refined.points[chain[w] as usize];
+            let b = refined.points[chain[(w + 1) % chain.len()] as usize];
+            assert!((a - b).length() <= 0.1 + 1e-12, "{w} {a} {b} {chain:?}");
+            assert!(
+                (a.x - 0.5).abs() < 1e-9 && (a.length() - 1.0).abs() < 1e-9,
+                "{a}"
+            );
+        }
+        // Deterministic.
+        assert_eq!(refine_arcs(&rep, &settings), refined);
+    }
+
+    #[test]
+    fn the_cap_bounds_the_new_points() {
+        let stored: Vec<DVec3> = (0..4)
+            .map(|k| circle_point(std::f64::consts::TAU * k as f64 / 4.0))
+            .collect();
+        let rep = two_spheres(stored);
+        for cap in [0, 1, 7, 100] {
+            let settings = RefineSettings {
+                spacing: 1e-9,
+                tolerance: 0.0,
+                max_new_points: cap,
+                prune: true,
+            };
+            let refined = refine_arcs(&rep, &settings);
+            assert!(refined.added <= cap, "{cap}: {}", refined.added);
+        }
+    }
+
+    #[test]
+    fn points_far_from_the_curve_keep_new_points_near_the_chord() {
+        // The stored points lie nowhere near the spheres' intersection.
+        let stored = vec![
+            DVec3::new(50.0, 0.0, 0.0),
+            DVec3::new(50.0, 3.0, 0.0),
+            DVec3::new(50.0, 0.0, 3.0),
+        ];
+        let rep = two_spheres(stored.clone());
+        let settings = RefineSettings {
+            spacing: 0.5,
+            tolerance: 1e-3,
+            max_new_points: 1000,
+            prune: true,
+        };
+        let refined = refine_arcs(&rep, &settings);
+        for p in &refined.points {
+            assert!((p.x - 50.0).abs() < 1e-9, "{p}");
+        }
+    }
+}
