@@ -189,7 +189,7 @@ fn print_text(i: &MeshInfo) {
 
 /// The bytes of a `.ellip` input (named `.ellip`, starting with its magic, or `-`), else
 /// `None`. Reading stops at the decoder's file-size limit plus one byte.
-fn read_if_ellip(path: &Path) -> Result<Option<Vec<u8>>, CliError> {
+pub(super) fn read_if_ellip(path: &Path) -> Result<Option<Vec<u8>>, CliError> {
     let cap = Limits::default().max_file_bytes + 1;
     let mut bytes = Vec::new();
     if path.as_os_str() == "-" {

@@ -1,5 +1,6 @@
 //! Argument definitions and dispatch for the `ellip` binary.
 
+mod compare;
 mod convert;
 mod encode;
 mod fixtures;
@@ -20,7 +21,8 @@ Examples:
   ellip convert part.obj part.ply --weld 1e-6   join vertices closer than 1e-6 on the way
   ellip segment bunny.obj -k 12 -o seg.glb      12 ellipsoidal regions, coloured, with statistics
   ellip encode hand.obj -k 18 -o hand.ellip     store 18 ellipsoidal regions in a few kilobytes
-  ellip info hand.ellip                         version, regions, arcs, bytes per section";
+  ellip info hand.ellip                         version, regions, arcs, bytes per section
+  ellip compare hand.obj hand2.obj              Hausdorff, RMS and mean distance, normal deviation";
 
 /// ellip: dense triangle meshes as a few dozen ellipsoidal regions.
 #[derive(Debug, Parser)]
@@ -59,6 +61,16 @@ enum Command {
         after_help = "Example:\n  ellip encode fixtures/meshes/blob3.obj -k 5 -o blob3.ellip"
     )]
     Encode(encode::EncodeArgs),
+    /// Measure how far apart two meshes are: Hausdorff, RMS and mean distance, normal deviation.
+    ///
+    /// Samples points uniformly by area on each mesh (seeded: the same files give the same
+    /// figures), finds each one's exact closest point on the other mesh, and reports both
+    /// directions and the symmetric figures (the worse direction), absolute and as a
+    /// percentage of A's bounding-box diagonal. A `.ellip` file is decoded and remeshed first.
+    #[command(
+        after_help = "Examples:\n  ellip compare fixtures/meshes/blob1.obj fixtures/meshes/blob2.obj\n  ellip compare bunny.obj bunny.ellip --samples 1000000 --json"
+    )]
+    Compare(compare::CompareArgs),
     /// Regenerate the committed fixture meshes (for developers).
     #[command(hide = true)]
     Fixtures(fixtures::FixturesArgs),
@@ -97,6 +109,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Convert(args) => convert::run(&args),
         Command::Encode(args) => encode::run(&args),
         Command::Segment(args) => segment::run(&args),
+        Command::Compare(args) => compare::run(&args),
         Command::Fixtures(args) => fixtures::run(&args),
     }
 }
