@@ -11,8 +11,12 @@
 //! piecewise-linear surfaces usually part most); RMS and mean use the area samples only,
 //! so they estimate the area-weighted integrals.
 //!
-//! Faces without a unit normal (zero area, or so small that it underflows) hold no surface:
-//! they are neither sampled nor searched.
+//! Both meshes are first scaled by the power of two that brings their largest coordinate
+//! into [0.5, 1): exact in floating point (the figures are those of the unscaled meshes, bit
+//! for bit, wherever those do not overflow or underflow), and it keeps squared distances and
+//! cross products in range for meshes of any size. Faces without a unit normal at that
+//! scale (zero area, or a sliver so thin that its normal underflows) hold no surface: they
+//! are neither sampled nor searched.
 
 mod bvh;
 mod sample;
@@ -32,10 +36,6 @@ pub const DEFAULT_SAMPLES: usize = 100_000;
 
 /// Most area samples per mesh (about 100 bytes of memory each).
 pub const MAX_SAMPLES: usize = 10_000_000;
-
-/// Largest absolute coordinate accepted: squares of distances and cross products of edges
-/// stay far from overflow (1e50² ≪ f64::MAX), and no real mesh comes near it.
-pub const MAX_COORDINATE: f64 = 1e50;
 
 /// How to compare.
 #[derive(Debug, Clone, PartialEq)]
@@ -134,15 +134,11 @@ pub enum CompareError {
         /// Its number of faces.
         faces: usize,
     },
-    /// A coordinate is too large for the distances to be computed safely.
-    #[error("mesh {mesh} has a coordinate {value:e}, beyond the ±{max:e} that can be compared")]
-    OutOfRange {
-        /// "A" or "B".
-        mesh: &'static str,
-        /// The offending coordinate.
-        value: f64,
-        /// [`MAX_COORDINATE`].
-        max: f64,
+    /// The meshes are so far apart, or so large, that a distance exceeds the largest float.
+    #[error("the distance between the meshes ({what}) overflows a 64-bit float")]
+    Overflow {
+        /// Which figure.
+        what: &'static str,
     },
     /// An option is out of range.
     #[error("invalid option {what}: {value}")]
@@ -172,13 +168,28 @@ pub fn compare_meshes(
             value: format!("{} (allowed: 1 ..= {MAX_SAMPLES})", options.samples),
         });
     }
-    check_range(a, "A")?;
-    check_range(b, "B")?;
-    let target_a = index_target(a, "A")?;
-    let target_b = index_target(b, "B")?;
+    let exponent = scale_exponent(a, b);
+    let (scaled_a, scaled_b) = match exponent {
+        0 => (a.clone(), b.clone()),
+        e => {
+            let down = |p: DVec3| p * 2f64.powi(-e);
+            // Scaling finite coordinates down (or tiny ones up to at most 1) stays finite.
+            let map = |m: &Mesh| m.map_positions(down).unwrap_or_else(|_| m.clone());
+            (map(a), map(b))
+        }
+    };
+    let target_a = index_target(&scaled_a, "A")?;
+    let target_b = index_target(&scaled_b, "B")?;
     let diagonal = a.bounding_box().map_or(0.0, |bbox| bbox.diagonal());
-    let a_to_b = measure_deviation(a, &target_b, options.samples, options.seed);
-    let b_to_a = measure_deviation(b, &target_a, options.samples, options.seed.wrapping_add(1));
+    let up = 2f64.powi(exponent);
+    let a_to_b = measure_deviation(&scaled_a, &target_b, options.samples, options.seed);
+    let b_to_a = measure_deviation(
+        &scaled_b,
+        &target_a,
+        options.samples,
+        options.seed.wrapping_add(1),
+    );
+    let (a_to_b, b_to_a) = (scale_deviation(&a_to_b, up)?, scale_deviation(&b_to_a, up)?);
     Ok(Comparison {
         a_to_b,
         b_to_a,
@@ -187,20 +198,38 @@ pub fn compare_meshes(
     })
 }
 
-fn check_range(mesh: &Mesh, name: &'static str) -> Result<(), CompareError> {
-    let too_large = mesh
+/// The `e` for which `2^-e` brings the largest absolute coordinate of both meshes into
+/// [0.5, 1) (0 when every coordinate is 0), within ±1000 so that `2^±e` is a normal float.
+fn scale_exponent(a: &Mesh, b: &Mesh) -> i32 {
+    let largest = a
         .positions()
         .iter()
-        .flat_map(|p| p.to_array())
-        .find(|c| c.abs() > MAX_COORDINATE);
-    match too_large {
-        Some(value) => Err(CompareError::OutOfRange {
-            mesh: name,
-            value,
-            max: MAX_COORDINATE,
-        }),
-        None => Ok(()),
+        .chain(b.positions())
+        .map(|p| p.abs().max_element())
+        .fold(0.0f64, f64::max);
+    if largest > 0.0 && largest.is_finite() {
+        (largest.log2().floor() as i32 + 1).clamp(-1000, 1000)
+    } else {
+        0
     }
+}
+
+/// A deviation measured on scaled meshes, brought back to model units.
+fn scale_deviation(d: &Deviation, up: f64) -> Result<Deviation, CompareError> {
+    let x = d.distances;
+    let distances = Distances {
+        hausdorff: x.hausdorff * up,
+        rms: x.rms * up,
+        mean: x.mean * up,
+    };
+    if !distances.hausdorff.is_finite() {
+        return Err(CompareError::Overflow { what: "Hausdorff" });
+    }
+    Ok(Deviation {
+        distances,
+        farthest: d.farthest * up,
+        ..*d
+    })
 }
 
 fn index_target(mesh: &Mesh, name: &'static str) -> Result<Target, CompareError> {
