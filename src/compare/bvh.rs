@@ -5,6 +5,10 @@
 //! at most ⌈log₂ n⌉ + 1), leaves of at most [`LEAF_SIZE`] triangles. A query walks the tree
 //! nearer child first and skips every box farther than the best triangle found so far, so
 //! the answer is exact: the same as testing every triangle.
+//!
+//! Our own rather than `parry3d` or `bvh`: those bring a second linear-algebra stack
+//! (nalgebra) and work in f32 by default, while this is a couple of hundred lines on glam's
+//! f64 vectors with a tie rule (smallest id) that makes the answer independent of the tree.
 
 use super::triangle::closest_point_on_triangle;
 use glam::DVec3;
