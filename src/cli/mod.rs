@@ -1,5 +1,6 @@
 //! Argument definitions and dispatch for the `ellip` binary.
 
+mod compare;
 mod convert;
 mod decode;
 mod encode;
@@ -24,7 +25,8 @@ Examples:
   ellip info hand.ellip                         version, regions, arcs, bytes per section
   ellip decode hand.ellip -o hand.glb           back to a watertight mesh (20000 vertices by default)
   ellip decode hand.ellip -o hand.ply --vertices 100000 --colors
-  ellip convert bunny.obj bunny.glb --via-ellip -k 24   mesh → .ellip → mesh in one step";
+  ellip convert bunny.obj bunny.glb --via-ellip -k 24   mesh → .ellip → mesh in one step
+  ellip compare hand.obj hand2.obj              Hausdorff, RMS and mean distance, normal deviation";
 
 /// ellip: dense triangle meshes as a few dozen ellipsoidal regions.
 #[derive(Debug, Parser)]
@@ -77,6 +79,16 @@ enum Command {
         after_help = "Examples:\n  ellip decode blob3.ellip -o blob3.glb\n  ellip decode blob3.ellip -o blob3.ply --vertices 50000 --colors\n  ellip decode blob3.ellip -o blob3.obj --scheme parametric --json\n  cat blob3.ellip | ellip decode - -o blob3.glb --tolerance 0.001"
     )]
     Decode(decode::DecodeArgs),
+    /// Measure how far apart two meshes are: Hausdorff, RMS and mean distance, normal deviation.
+    ///
+    /// Samples points uniformly by area on each mesh (seeded: the same files give the same
+    /// figures), finds each one's exact closest point on the other mesh, and reports both
+    /// directions and the symmetric figures (the worse direction), absolute and as a
+    /// percentage of A's bounding-box diagonal. A `.ellip` file is decoded and remeshed first.
+    #[command(
+        after_help = "Examples:\n  ellip compare fixtures/meshes/blob1.obj fixtures/meshes/blob2.obj\n  ellip compare bunny.obj bunny.ellip --samples 1000000 --json"
+    )]
+    Compare(compare::CompareArgs),
     /// Regenerate the committed fixture meshes (for developers).
     #[command(hide = true)]
     Fixtures(fixtures::FixturesArgs),
@@ -116,6 +128,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Encode(args) => encode::run(&args),
         Command::Decode(args) => decode::run(&args),
         Command::Segment(args) => segment::run(&args),
+        Command::Compare(args) => compare::run(&args),
         Command::Fixtures(args) => fixtures::run(&args),
     }
 }
