@@ -77,6 +77,18 @@ pub enum EncodeMeshError {
     /// The format refused the representation or the options.
     #[error(transparent)]
     Format(#[from] EncodeError),
+    /// Decoding the encoding to measure it failed (a bug: the encoder wrote it).
+    #[error("internal error, the encoding does not decode: {0}")]
+    Decode(#[from] format::DecodeError),
+    /// Remeshing the encoding to measure it failed.
+    #[error("the encoding could not be remeshed to measure it: {0}")]
+    Remesh(#[from] crate::remesh::RemeshError),
+    /// Comparing the decoded mesh with its source failed.
+    #[error(transparent)]
+    Compare(#[from] crate::compare::CompareError),
+    /// No setting the rate control tried meets the target.
+    #[error("{0}")]
+    Unreachable(String),
     /// An option is out of range.
     #[error("invalid option {what}: {value}")]
     InvalidOption {
@@ -115,6 +127,7 @@ pub fn encode_mesh(
         source_faces: mesh.face_count() as u64,
         simplify_tolerance: None,
         measured_error: None,
+        measured_hausdorff: None,
         // Decoders default to the source's vertex count: no need to store it twice.
         suggested_vertices: None,
     };
@@ -210,4 +223,252 @@ fn store(
         removed_points,
         bits,
     })
+}
+
+// ---------------------------------------------------------------------------------------
+// What an encoding loses, and rate control (issue "measure and show").
+
+/// What decoding a `.ellip` file loses against its source mesh: symmetric figures from
+/// [`crate::compare::compare_meshes`] (area-uniform samples on both meshes, exact closest
+/// points), the decoded mesh remeshed at the file's suggested density (the source's vertex
+/// count).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Measured {
+    /// Symmetric RMS distance, model units.
+    pub rms: f64,
+    /// Symmetric Hausdorff distance, model units.
+    pub hausdorff: f64,
+    /// Mean normal deviation, degrees.
+    pub normal_deviation: f64,
+    /// The source's bounding-box diagonal, the scale of relative figures.
+    pub diagonal: f64,
+}
+
+/// Decodes `bytes`, remeshes them and compares the result with `mesh`.
+pub fn measure_encoding(mesh: &Mesh, bytes: &[u8]) -> Result<Measured, EncodeMeshError> {
+    let representation = format::decode(bytes, &format::Limits::default())?;
+    let decoded = crate::remesh::remesh(&representation, &crate::remesh::RemeshOptions::default())?;
+    let c = crate::compare::compare_meshes(
+        mesh,
+        &decoded.mesh,
+        &crate::compare::CompareOptions::default(),
+    )?;
+    Ok(Measured {
+        rms: c.symmetric.distances.rms,
+        hausdorff: c.symmetric.distances.hausdorff,
+        normal_deviation: c.symmetric.normal_deviation,
+        diagonal: c.diagonal,
+    })
+}
+
+/// The file of `encoded` with `measured` stored in its metadata (`META` measured_error and
+/// measured_hausdorff), which `ellip info` shows.
+pub fn store_measurement(
+    encoded: &Encoded,
+    measured: &Measured,
+) -> Result<Vec<u8>, EncodeMeshError> {
+    let mut representation = encoded.representation.clone();
+    representation.metadata.measured_error = Some(measured.rms);
+    representation.metadata.measured_hausdorff = Some(measured.hausdorff);
+    Ok(format::encode(
+        &representation,
+        &EncodeOptions { bits: encoded.bits },
+    )?)
+}
+
+/// What rate control aims at.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Target {
+    /// The smallest file whose measured RMS error is at most this fraction of the
+    /// bounding-box diagonal.
+    Rms(f64),
+    /// The lowest measured RMS error in at most this many bytes (measurement included).
+    MaxBytes(usize),
+}
+
+/// One setting rate control tried.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Probe {
+    /// Regions.
+    pub regions: usize,
+    /// Boundary tolerance, as a fraction of the diagonal.
+    pub boundary_tolerance: f64,
+    /// File size with the measurement stored.
+    pub bytes: usize,
+    /// Measured RMS error as a fraction of the diagonal.
+    pub rms: f64,
+}
+
+/// The result of rate control.
+#[derive(Debug, Clone)]
+pub struct RateControlled {
+    /// The chosen encoding (its `bytes` without the measurement).
+    pub encoded: Encoded,
+    /// Its measurement.
+    pub measured: Measured,
+    /// The file, with the measurement stored.
+    pub bytes: Vec<u8>,
+    /// Every setting tried, in order.
+    pub probes: Vec<Probe>,
+}
+
+/// Most regions rate control tries.
+pub const MAX_RATE_REGIONS: usize = 256;
+
+/// Encodes `mesh` to meet `target`, searching the region count K (the setting that moves
+/// size and error most) and then the boundary tolerance.
+///
+/// Strategy: K = 4, 8, 16, … doubling until the target's side flips (the error drops under
+/// the RMS target, or the file no longer fits the byte budget), then bisection between the
+/// last two K; every probe is a full encode, decode and measurement, so the cost is about
+/// 2·log₂ K probes. For an RMS target the chosen K then tries boundary tolerances 2× and 4×
+/// the one in `settings` and keeps the smallest file still within the target. Error falls and
+/// size grows with K only roughly: the search returns the best probe that meets the target
+/// (smallest file, or lowest error within the budget), never one that misses it.
+/// `settings.segment.regions` is ignored; `report` hears of each probe.
+pub fn encode_to_target(
+    mesh: &Mesh,
+    settings: &EncodeSettings,
+    target: Target,
+    report: &mut dyn FnMut(&Probe),
+) -> Result<RateControlled, EncodeMeshError> {
+    match target {
+        Target::Rms(t) if !(t.is_finite() && t > 0.0) => {
+            return Err(EncodeMeshError::InvalidOption {
+                what: "RMS target",
+                value: t.to_string(),
+            })
+        }
+        Target::MaxBytes(0) => {
+            return Err(EncodeMeshError::InvalidOption {
+                what: "byte budget",
+                value: "0".into(),
+            })
+        }
+        _ => {}
+    }
+    let max_k = MAX_RATE_REGIONS.min(mesh.face_count().max(1));
+    let mut tried: Vec<(Probe, RateControlled)> = Vec::new();
+    let mut probe = |k: usize, tolerance: f64, tried: &mut Vec<(Probe, RateControlled)>| {
+        if let Some((p, _)) = tried
+            .iter()
+            .find(|(p, _)| p.regions == k && p.boundary_tolerance == tolerance)
+        {
+            return Ok::<Probe, EncodeMeshError>(*p);
+        }
+        let s = EncodeSettings {
+            segment: SegmentOptions {
+                regions: crate::segment::RegionCount::Fixed(k),
+                ..settings.segment.clone()
+            },
+            simplify_tolerance: tolerance,
+            ..settings.clone()
+        };
+        let encoded = encode_mesh(mesh, &s, &mut |_| {})?;
+        let measured = measure_encoding(mesh, &encoded.bytes)?;
+        let bytes = store_measurement(&encoded, &measured)?;
+        let p = Probe {
+            regions: k,
+            boundary_tolerance: tolerance,
+            bytes: bytes.len(),
+            rms: measured.rms / measured.diagonal.max(f64::MIN_POSITIVE),
+        };
+        report(&p);
+        tried.push((
+            p,
+            RateControlled {
+                encoded,
+                measured,
+                bytes,
+                probes: Vec::new(),
+            },
+        ));
+        Ok(p)
+    };
+    let meets = |p: &Probe| match target {
+        Target::Rms(t) => p.rms <= t,
+        Target::MaxBytes(n) => p.bytes <= n,
+    };
+    // For an RMS target, "on the far side" is meeting it; for a budget, missing it.
+    let beyond = |p: &Probe| match target {
+        Target::Rms(_) => meets(p),
+        Target::MaxBytes(_) => !meets(p),
+    };
+    let tolerance = settings.simplify_tolerance;
+    let mut below = 0usize; // the largest K known to be on the near side (0: none)
+    let mut above = None; // the smallest K known to be beyond
+    let mut k = 4.min(max_k);
+    loop {
+        let p = probe(k, tolerance, &mut tried)?;
+        if beyond(&p) {
+            above = Some(k);
+            break;
+        }
+        below = k;
+        if k == max_k {
+            break;
+        }
+        k = (2 * k).min(max_k);
+    }
+    if let Some(mut hi) = above {
+        let mut lo = below + 1;
+        if below == 0 {
+            lo = 1;
+        }
+        while lo < hi {
+            let mid = (lo + hi) / 2;
+            if beyond(&probe(mid, tolerance, &mut tried)?) {
+                hi = mid;
+            } else {
+                lo = mid + 1;
+            }
+        }
+        if let Target::Rms(_) = target {
+            for factor in [2.0, 4.0] {
+                probe(hi, tolerance * factor, &mut tried)?;
+            }
+        } else if hi == 1 {
+            // Even one region does not fit: try coarser boundaries.
+            for factor in [4.0, 16.0] {
+                probe(1, tolerance * factor, &mut tried)?;
+            }
+        }
+    }
+    let probes: Vec<Probe> = tried.iter().map(|(p, _)| *p).collect();
+    let best = tried
+        .into_iter()
+        .filter(|(p, _)| meets(p))
+        .min_by(|(a, _), (b, _)| match target {
+            Target::Rms(_) => a.bytes.cmp(&b.bytes).then(a.rms.total_cmp(&b.rms)),
+            Target::MaxBytes(_) => a.rms.total_cmp(&b.rms).then(a.bytes.cmp(&b.bytes)),
+        });
+    match best {
+        Some((_, mut chosen)) => {
+            chosen.probes = probes;
+            Ok(chosen)
+        }
+        None => {
+            let closest = probes
+                .iter()
+                .map(|p| {
+                    format!(
+                        "K={} {} bytes RMS {:.4}%",
+                        p.regions,
+                        p.bytes,
+                        100.0 * p.rms
+                    )
+                })
+                .collect::<Vec<_>>()
+                .join("; ");
+            Err(EncodeMeshError::Unreachable(match target {
+                Target::Rms(t) => format!(
+                    "no setting tried reaches an RMS error of {:.4}% of the diagonal (tried: {closest})",
+                    100.0 * t
+                ),
+                Target::MaxBytes(n) => {
+                    format!("no setting tried fits in {n} bytes (tried: {closest})")
+                }
+            }))
+        }
+    }
 }

@@ -89,9 +89,12 @@ pub struct Metadata {
     /// Tolerance the arcs were simplified with ([`Representation::simplify_arcs`]), in model
     /// units, if they were.
     pub simplify_tolerance: Option<f64>,
-    /// Measured error of the representation against its source (a later issue defines the
-    /// measure), if measured.
+    /// Measured symmetric RMS distance between the decoded mesh and its source, in model
+    /// units, if measured ([`crate::encode::measure_encoding`]).
     pub measured_error: Option<f64>,
+    /// Measured symmetric Hausdorff distance between the decoded mesh and its source, in
+    /// model units, if measured ([`crate::encode::measure_encoding`]).
+    pub measured_hausdorff: Option<f64>,
     /// Suggested total vertex count for remeshing.
     pub suggested_vertices: Option<u64>,
 }
@@ -375,7 +378,7 @@ impl Representation {
     fn validate_metadata(&self) -> Result<(), InvalidRepresentation> {
         let m = &self.metadata;
         let bad = |v: Option<f64>| v.is_some_and(|x| !(x.is_finite() && x >= 0.0));
-        if bad(m.simplify_tolerance) || bad(m.measured_error) {
+        if bad(m.simplify_tolerance) || bad(m.measured_error) || bad(m.measured_hausdorff) {
             return Err(invalid(
                 Part::Metadata,
                 "M1: value not finite and non-negative",

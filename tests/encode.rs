@@ -117,3 +117,93 @@ fn the_automatic_grid_gives_the_smallest_file_of_those_it_tries() {
     let again = encode_mesh(&mesh, &settings(4), &mut |_| {}).unwrap();
     assert!(again.bytes == auto.bytes);
 }
+
+/// Symmetric RMS distance by brute force, independent of `ellip::compare`: `n` points on
+/// each mesh (at fixed barycentric spots of evenly strided faces, weighted by face area)
+/// against every triangle of the other.
+fn brute_force_rms(a: &Mesh, b: &Mesh, n: usize) -> f64 {
+    fn closest_on_triangle(p: DVec3, t: [DVec3; 3]) -> f64 {
+        // Distance to the plane when the projection falls inside, else to the edges.
+        let [a, b, c] = t;
+        let n = (b - a).cross(c - a);
+        let area2 = n.length();
+        if area2 > 0.0 {
+            let nn = n / area2;
+            let q = p - nn * (p - a).dot(nn);
+            let inside = [(a, b), (b, c), (c, a)]
+                .iter()
+                .all(|&(u, v)| (v - u).cross(q - u).dot(nn) >= 0.0);
+            if inside {
+                return (p - q).length();
+            }
+        }
+        [(a, b), (b, c), (c, a)]
+            .iter()
+            .map(|&(u, v)| distance_to_segment(p, u, v))
+            .fold(f64::INFINITY, f64::min)
+    }
+    let one_way = |from: &Mesh, to: &Mesh| {
+        let faces = from.face_count();
+        let stride = (faces / n).max(1);
+        let (mut sum, mut weight) = (0.0, 0.0);
+        for f in (0..faces).step_by(stride) {
+            let [x, y, z] = from.corners(f);
+            let area = from.face_area(f);
+            for (u, v) in [(1.0 / 3.0, 1.0 / 3.0), (0.6, 0.2), (0.2, 0.6), (0.2, 0.2)] {
+                let p = x * u + y * v + z * (1.0 - u - v);
+                let d = (0..to.face_count())
+                    .map(|g| closest_on_triangle(p, to.corners(g)))
+                    .fold(f64::INFINITY, f64::min);
+                sum += area * d * d;
+                weight += area;
+            }
+        }
+        (sum / weight).sqrt()
+    };
+    one_way(a, b).max(one_way(b, a))
+}
+
+#[test]
+fn rate_control_meets_an_error_target_and_a_byte_budget() {
+    use ellip::encode::{encode_to_target, Target};
+    use ellip::remesh::{remesh, RemeshOptions};
+    let mesh = blob("blob2");
+    let diagonal = mesh.bounding_box().unwrap().diagonal();
+    let target = 0.003;
+    let rc = encode_to_target(&mesh, &settings(4), Target::Rms(target), &mut |_| {}).unwrap();
+    let stored = decode(&rc.bytes, &Limits::default()).unwrap();
+    assert_eq!(stored.metadata.measured_error, Some(rc.measured.rms));
+    assert!(rc.measured.rms <= target * diagonal);
+    // Checked independently: brute force on about 500 faces a side (sampling error a few %).
+    let decoded = remesh(&stored, &RemeshOptions::default()).unwrap().mesh;
+    let independent = brute_force_rms(&mesh, &decoded, 500) / diagonal;
+    println!(
+        "RMS target {target}: K = {}, {} bytes, measured {:.5}, brute force {independent:.5}",
+        rc.encoded.segmentation.region_count(),
+        rc.bytes.len(),
+        rc.measured.rms / diagonal
+    );
+    assert!(independent <= target * 1.1, "{independent}");
+    // Every smaller file tried missed the target.
+    for p in &rc.probes {
+        if p.bytes < rc.bytes.len() {
+            assert!(p.rms > target, "{p:?}");
+        }
+    }
+
+    for budget in [600, 900] {
+        let rc =
+            encode_to_target(&mesh, &settings(4), Target::MaxBytes(budget), &mut |_| {}).unwrap();
+        assert!(rc.bytes.len() <= budget, "{} > {budget}", rc.bytes.len());
+        let stored = decode(&rc.bytes, &Limits::default()).unwrap();
+        assert!(stored.metadata.measured_hausdorff.is_some());
+        // No probe that fitted had a lower error.
+        for p in &rc.probes {
+            if p.bytes <= budget {
+                assert!(p.rms * diagonal >= rc.measured.rms, "{p:?}");
+            }
+        }
+    }
+    // A budget nothing fits is an error, not an overrun.
+    assert!(encode_to_target(&mesh, &settings(4), Target::MaxBytes(100), &mut |_| {}).is_err());
+}

@@ -777,6 +777,7 @@ fn recipe() -> impl Strategy<Value = Recipe> {
                     source_faces: u64::from(f),
                     simplify_tolerance: None,
                     measured_error: err,
+                    measured_hausdorff: err.map(|e| 3.0 * e),
                     suggested_vertices: sv.map(u64::from),
                 },
             },

@@ -55,6 +55,7 @@ fuzz_target!(|input: Input| {
             source_faces: input.metadata.1,
             simplify_tolerance: input.metadata.2,
             measured_error: input.metadata.3,
+            measured_hausdorff: input.metadata.3.map(|e| 2.0 * e),
             suggested_vertices: input.metadata.4,
         },
     };

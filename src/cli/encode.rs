@@ -3,9 +3,13 @@
 use super::segment::{progress_bar, show_progress, SegmentationArgs};
 use super::{refuse_overwriting, shown, CliError, ReadArgs};
 use clap::Args;
-use ellip::encode::{encode_mesh, EncodeSettings};
+use ellip::encode::{
+    encode_mesh, encode_to_target, measure_encoding, store_measurement, EncodeSettings, Measured,
+    Probe, Target,
+};
 use ellip::format::{inspect, simplify::DEFAULT_RELATIVE_TOLERANCE, Limits};
 use ellip::import::read_mesh;
+use ellip::segment::RegionCount;
 use serde::Serialize;
 use std::io::Write;
 use std::path::PathBuf;
@@ -29,6 +33,14 @@ pub struct EncodeArgs {
     /// rounding together). 0 keeps every boundary point.
     #[arg(long, value_name = "FRACTION", default_value_t = DEFAULT_RELATIVE_TOLERANCE)]
     simplify: f64,
+    /// Decode the file, compare it with the input and print and store the RMS and Hausdorff
+    /// error (shown by `ellip info`).
+    #[arg(long)]
+    report: bool,
+    /// Rate control: the lowest error that fits in this many bytes (searches -k; implies
+    /// --report).
+    #[arg(long, value_name = "N")]
+    max_bytes: Option<usize>,
     /// Print the report as JSON on stdout (not with `-o -`).
     #[arg(long)]
     json: bool,
@@ -57,7 +69,21 @@ struct EncodeReport {
     raw_bytes: u64,
     ratio_to_input: f64,
     ratio_to_raw: f64,
+    /// What decoding loses (with --report, --tolerance or --max-bytes).
+    error: Option<ErrorReport>,
+    /// Encodings rate control tried (0 without it).
+    rate_control_probes: usize,
     sections: Vec<SectionReport>,
+}
+
+/// The measured error of the decoded file against the input, symmetric.
+#[derive(Debug, Serialize)]
+struct ErrorReport {
+    rms: f64,
+    hausdorff: f64,
+    rms_fraction: f64,
+    hausdorff_fraction: f64,
+    normal_deviation_degrees: f64,
 }
 
 #[derive(Debug, Serialize)]
@@ -91,22 +117,62 @@ pub fn run(args: &EncodeArgs) -> Result<(), CliError> {
         }
     }
     let mesh = &imported.mesh;
-    let bar = progress_bar(args.quiet, &settings.segment);
-    let encoded = encode_mesh(mesh, &settings, &mut |p| show_progress(&bar, &p))?;
-    bar.finish_and_clear();
+    // Rate control: --tolerance (the decoded RMS error) or --max-bytes search -k.
+    let target = match (settings.segment.regions, args.max_bytes) {
+        (RegionCount::Tolerance(_), Some(_)) => {
+            return Err("give either --tolerance or --max-bytes, not both".into())
+        }
+        (RegionCount::Tolerance(t), None) => Some(Target::Rms(t)),
+        (RegionCount::Fixed(_), Some(_)) if args.segmentation.has_regions() => {
+            return Err("give either -k/--regions or --max-bytes, not both".into())
+        }
+        (_, Some(0)) => return Err("--max-bytes must be at least 1".into()),
+        (_, Some(n)) => Some(Target::MaxBytes(n)),
+        _ => None,
+    };
+    let (encoded, bytes, measured, probes) = match target {
+        Some(target) => {
+            let quiet = args.quiet;
+            let rc = encode_to_target(mesh, &settings, target, &mut |p: &Probe| {
+                if !quiet {
+                    eprintln!(
+                        "  tried K = {:>3}, boundary tolerance {:.1e}: {} bytes, RMS {:.4}% of the diagonal",
+                        p.regions,
+                        p.boundary_tolerance,
+                        p.bytes,
+                        100.0 * p.rms
+                    );
+                }
+            })?;
+            (rc.encoded, rc.bytes, Some(rc.measured), rc.probes.len())
+        }
+        None => {
+            let bar = progress_bar(args.quiet, &settings.segment);
+            let encoded = encode_mesh(mesh, &settings, &mut |p| show_progress(&bar, &p))?;
+            bar.finish_and_clear();
+            if args.report {
+                let measured = measure_encoding(mesh, &encoded.bytes)?;
+                let bytes = store_measurement(&encoded, &measured)?;
+                (encoded, bytes, Some(measured), 0)
+            } else {
+                let bytes = encoded.bytes.clone();
+                (encoded, bytes, None, 0)
+            }
+        }
+    };
 
     if to_stdout {
         let mut out = std::io::stdout().lock();
-        out.write_all(&encoded.bytes)?;
+        out.write_all(&bytes)?;
         out.flush()?;
     } else {
-        ellip::format::write_file(&args.output, &encoded.bytes)?;
+        ellip::format::write_file(&args.output, &bytes)?;
     }
 
-    let summary = inspect(&encoded.bytes, &Limits::default())?;
+    let summary = inspect(&bytes, &Limits::default())?;
     let input_bytes = std::fs::metadata(&args.input).map_or(0, |m| m.len());
     let raw_bytes = 12 * (mesh.vertex_count() + mesh.face_count()) as u64;
-    let bytes = encoded.bytes.len();
+    let bytes = bytes.len();
     let report = EncodeReport {
         file: shown(&args.input),
         output: shown(&args.output),
@@ -122,6 +188,14 @@ pub fn run(args: &EncodeArgs) -> Result<(), CliError> {
         raw_bytes,
         ratio_to_input: input_bytes as f64 / bytes as f64,
         ratio_to_raw: raw_bytes as f64 / bytes as f64,
+        error: measured.map(|m: Measured| ErrorReport {
+            rms: m.rms,
+            hausdorff: m.hausdorff,
+            rms_fraction: m.rms / m.diagonal,
+            hausdorff_fraction: m.hausdorff / m.diagonal,
+            normal_deviation_degrees: m.normal_deviation,
+        }),
+        rate_control_probes: probes,
         sections: summary
             .sections
             .iter()
@@ -150,6 +224,14 @@ fn print_report(r: &EncodeReport) {
         "ratio {:.1}:1 to the input file ({} bytes), {:.1}:1 to raw float32 positions + u32 indices ({} bytes)",
         r.ratio_to_input, r.input_bytes, r.ratio_to_raw, r.raw_bytes
     );
+    if let Some(e) = &r.error {
+        eprintln!(
+            "decoded error: RMS {:.4}%, Hausdorff {:.4}% of the diagonal, normals {:.2}° (stored in the file)",
+            100.0 * e.rms_fraction,
+            100.0 * e.hausdorff_fraction,
+            e.normal_deviation_degrees
+        );
+    }
     let sections: Vec<String> = r
         .sections
         .iter()

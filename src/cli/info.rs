@@ -231,6 +231,7 @@ struct EllipInfo {
     source_faces: u64,
     simplify_tolerance: Option<f64>,
     measured_error: Option<f64>,
+    measured_hausdorff: Option<f64>,
     suggested_vertices: Option<u64>,
     sections: Vec<SectionInfo>,
 }
@@ -287,6 +288,7 @@ fn describe_ellip(path: &Path, bytes: &[u8], json: bool) -> Result<(), CliError>
         source_faces: summary.metadata.source_faces,
         simplify_tolerance: summary.metadata.simplify_tolerance,
         measured_error: summary.metadata.measured_error,
+        measured_hausdorff: summary.metadata.measured_hausdorff,
         suggested_vertices: summary.metadata.suggested_vertices,
         sections: summary
             .sections
@@ -324,7 +326,10 @@ fn describe_ellip(path: &Path, bytes: &[u8], json: bool) -> Result<(), CliError>
         println!("simplified to   {t:.3e}");
     }
     if let Some(e) = info.measured_error {
-        println!("measured error  {e:.3e}");
+        println!("measured error  RMS {e:.3e} (decoded against the source)");
+    }
+    if let Some(h) = info.measured_hausdorff {
+        println!("                Hausdorff {h:.3e}");
     }
     println!("regions         {}", info.regions.len());
     println!("  region  sign  radii                                  cycles");

@@ -63,7 +63,9 @@ pub struct SegmentationArgs {
     )]
     regions: Option<i64>,
     /// Instead of -k: as few regions as reach this RMS error, as a fraction of the
-    /// bounding-box diagonal (e.g. 0.01).
+    /// bounding-box diagonal (e.g. 0.01) — for `segment`, of the vertices to their
+    /// ellipsoids; for `encode`, of the decoded mesh against the input (rate control: the
+    /// smallest file that meets it).
     #[arg(long, value_name = "T", allow_negative_numbers = true)]
     tolerance: Option<f64>,
     /// Most Lloyd iterations after seeding.
@@ -267,6 +269,11 @@ pub fn run(args: &SegmentArgs) -> Result<(), CliError> {
 impl SegmentationArgs {
     /// The library's options from the command line, each value checked (one-line errors, before
     /// the mesh is read). `planes` says whether the plane metric will be used.
+    /// Whether -k/--regions was given.
+    pub fn has_regions(&self) -> bool {
+        self.regions.is_some()
+    }
+
     pub fn options(&self, planes: bool) -> Result<SegmentOptions, CliError> {
         let args = self;
         let regions = match (args.regions, args.tolerance) {

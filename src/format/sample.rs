@@ -22,6 +22,7 @@ pub fn sphere() -> Representation {
             source_faces: 1280,
             simplify_tolerance: None,
             measured_error: None,
+            measured_hausdorff: None,
             suggested_vertices: Some(642),
         },
     }
@@ -68,6 +69,7 @@ pub fn two_hemispheres() -> Representation {
             source_faces: 1996,
             simplify_tolerance: Some(0.01),
             measured_error: Some(0.002),
+            measured_hausdorff: Some(0.006),
             suggested_vertices: None,
         },
     }
@@ -382,6 +384,7 @@ pub fn build(recipe: &Recipe) -> Representation {
     rep.metadata = Metadata {
         simplify_tolerance: keep(recipe.metadata.simplify_tolerance),
         measured_error: keep(recipe.metadata.measured_error),
+        measured_hausdorff: keep(recipe.metadata.measured_hausdorff),
         ..recipe.metadata.clone()
     };
     rep

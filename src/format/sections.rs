@@ -34,6 +34,7 @@ struct MetaWire {
     simplify_tolerance: Option<f64>,
     measured_error: Option<f64>,
     suggested_vertices: Option<u64>,
+    measured_hausdorff: Option<f64>,
 }
 
 pub(crate) fn write_meta(m: &Metadata) -> Result<Vec<u8>, EncodeError> {
@@ -44,6 +45,7 @@ pub(crate) fn write_meta(m: &Metadata) -> Result<Vec<u8>, EncodeError> {
         simplify_tolerance: m.simplify_tolerance,
         measured_error: m.measured_error,
         suggested_vertices: m.suggested_vertices,
+        measured_hausdorff: m.measured_hausdorff,
     })?;
     Ok(w.into_bytes())
 }
@@ -56,6 +58,7 @@ pub(crate) fn read_meta(r: &mut Reader<'_>) -> Result<Metadata, DecodeError> {
         simplify_tolerance: m.simplify_tolerance,
         measured_error: m.measured_error,
         suggested_vertices: m.suggested_vertices,
+        measured_hausdorff: m.measured_hausdorff,
     })
 }
 
