@@ -43,6 +43,7 @@
 //! | represent | [`representation`] | ellipsoids, boundary-point pool, shared arcs, cycles; arc simplification |
 //! | store | [`format`](mod@format) | the `.ellip` file: versioned encoder, hardened decoder (`spec/ELLIP.md`) |
 //! | remesh | [`remesh`] | regions back to a watertight triangle mesh: charts, spade CDT, ray query |
+//! | show | [`preview`] | region colours shared by every command that colours regions |
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
@@ -53,6 +54,7 @@ pub mod export;
 pub mod format;
 pub mod import;
 pub mod mesh;
+pub mod preview;
 pub mod remesh;
 pub mod representation;
 pub mod rng;

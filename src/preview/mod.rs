@@ -1,0 +1,3 @@
+//! Preview: pictures of meshes and their regions.
+
+pub mod palette;
