@@ -43,7 +43,7 @@
 //! | represent | [`representation`] | ellipsoids, boundary-point pool, shared arcs, cycles; arc simplification |
 //! | store | [`format`](mod@format) | the `.ellip` file: versioned encoder, hardened decoder (`spec/ELLIP.md`) |
 //! | remesh | [`remesh`] | regions back to a watertight triangle mesh: charts, spade CDT, ray query |
-//! | show | [`preview`] | region colours shared by every command that colours regions |
+//! | show | [`preview`] | meshes side by side in a PNG: software rasteriser, region colours and boundaries |
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
