@@ -44,6 +44,8 @@ pub const MAX_PANEL_SIDE: u32 = 4096;
 pub const MAX_PANELS: usize = 16;
 /// Most samples (pixels × supersampling²) of one panel: 16 bytes each while drawing.
 pub const MAX_PANEL_SAMPLES: u64 = 4096 * 4096;
+/// Most palette colours computed for one panel.
+const MAX_PALETTE: usize = 4096;
 /// A vertex normal farther than this from its face's normal is not used for that face.
 const CREASE_DEGREES: f64 = 40.0;
 /// Depth bias of boundary lines, in units of the scene's depth (its bounding sphere's
@@ -139,13 +141,14 @@ impl<'a> Panel<'a> {
         normals: Option<&'a [DVec3]>,
         face_regions: &[u32],
     ) -> Self {
+        // Region numbers past MAX_PALETTE (hostile input) reuse the palette's colours.
         let count = face_regions.iter().max().map_or(0, |&r| r as usize + 1);
-        let colors = palette::palette(count);
+        let colors = palette::palette(count.min(MAX_PALETTE));
         let per_face = (0..mesh.face_count())
             .map(|f| {
                 face_regions
                     .get(f)
-                    .and_then(|&r| colors.get(r as usize))
+                    .and_then(|&r| colors.get(r as usize % colors.len().max(1)))
                     .map_or(SOURCE_GREY, |c| c.srgb())
             })
             .collect();
@@ -502,6 +505,14 @@ mod tests {
         assert_eq!(lines.len(), 2, "{lines:?}");
         // A missing label is a region of its own.
         assert_eq!(region_boundaries(&mesh, &[0, 0]).len(), 1);
+        // Huge region numbers neither allocate a huge palette nor fail.
+        let panel = Panel::regions("r", &mesh, None, &[u32::MAX, 0, 7]);
+        let Colors::PerFace(colors) = &panel.colors else {
+            panic!("per-face colours")
+        };
+        assert_eq!(colors.len(), 3);
+        assert_eq!(colors[1], palette::palette(1)[0].srgb());
+        assert_eq!(panel.lines.len(), 2);
     }
 
     #[test]
