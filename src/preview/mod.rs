@@ -516,6 +516,40 @@ mod tests {
     }
 
     #[test]
+    fn per_vertex_colours_are_interpolated_and_per_face_colours_are_exact() {
+        let mesh = Mesh::new(vec![DVec3::ZERO, DVec3::X, DVec3::Y], vec![[0, 1, 2]]).unwrap();
+        let options = RenderOptions {
+            width: 100,
+            height: 100,
+            shading: Shading::Unlit,
+            captions: false,
+            view: View {
+                azimuth: 0.0,
+                elevation: 0.0,
+            },
+            ..RenderOptions::default()
+        };
+        let (red, green, blue) = ([255, 0, 0], [0, 255, 0], [0, 0, 255]);
+        let mut panel = Panel::plain("t", &mesh, None);
+        panel.colors = Colors::PerVertex(vec![red, green, blue]);
+        let image = render(&[panel.clone()], &options).unwrap();
+        // Seen from +Z: vertex 0 at the bottom left, 1 at the bottom right, 2 at the top left
+        // of the fitted square (6 px margins).
+        let near = |x, y| image.pixel(x, y).unwrap();
+        let (a, b, c) = (near(8, 91), near(85, 91), near(8, 14));
+        // Within 8% of a corner (weights mixed in linear light: 7% is sRGB 74).
+        assert!(a[0] > 200 && a[1] < 100 && a[2] < 100, "{a:?}");
+        assert!(b[1] > 200 && b[0] < 100 && b[2] < 100, "{b:?}");
+        assert!(c[2] > 200 && c[0] < 100 && c[1] < 100, "{c:?}");
+        // The middle mixes all three.
+        let m = near(30, 65);
+        assert!(m.iter().all(|&x| x > 60), "{m:?}");
+        panel.colors = Colors::PerFace(vec![green]);
+        let image = render(&[panel], &options).unwrap();
+        assert_eq!(image.pixel(30, 65), Some(green));
+    }
+
+    #[test]
     fn captions_are_cut_to_the_panel() {
         assert_eq!(fit_caption("source", 480, 2), "source");
         let cut = fit_caption("a very long caption that cannot fit here", 100, 1);
