@@ -85,7 +85,7 @@ enum Command {
     /// boundaries between regions, and the decoded mesh (mesh → .ellip → mesh, coloured by
     /// region); the encoding takes the same options as `encode`. A .ellip file gives two:
     /// the decoded mesh coloured by region, and in grey. One camera for every panel (a
-    /// three-quarter view fitted to the bounding box), software rendering, the same bytes
+    /// three-quarter view fitted to the meshes), software rendering, the same bytes
     /// for the same input. Written atomically, never over the input.
     #[command(
         after_help = "Examples:\n  ellip preview fixtures/meshes/blob3.obj -k 5 -o blob3.png\n  ellip preview bunny.obj -k 12 -o bunny.png --size 640x480\n  ellip preview hand.ellip -o hand.png --vertices 50000"
