@@ -125,9 +125,14 @@ fn main() {
 fn worst_boundary_error(exact: &Representation, decoded: &Representation) -> f64 {
     let mut worst = 0.0f64;
     for i in 0..exact.arcs.len().min(decoded.arcs.len()) {
-        let (Some(before), Some(after)) = (exact.arc_positions(i), decoded.arc_positions(i)) else {
+        let (Some(before), Some(mut after)) = (exact.arc_positions(i), decoded.arc_positions(i))
+        else {
             continue;
         };
+        // A closed loop's last segment returns to its first point.
+        if let (true, Some(&first)) = (decoded.arcs[i].closed, after.first()) {
+            after.push(first);
+        }
         for &p in &before {
             let d = after
                 .windows(2)

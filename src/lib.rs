@@ -43,11 +43,13 @@
 //! | represent | [`representation`] | ellipsoids, boundary-point pool, shared arcs, cycles; arc simplification |
 //! | store | [`format`](mod@format) | the `.ellip` file: versioned encoder, hardened decoder (`spec/ELLIP.md`) |
 //! | remesh | [`remesh`] | regions back to a watertight triangle mesh: charts, spade CDT, ray query |
+//! | measure | [`compare`] | distances between two meshes: Hausdorff, RMS, mean, normal deviation |
 //! | show | [`preview`] | meshes side by side in a PNG: software rasteriser, region colours and boundaries |
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
 pub mod boundary;
+pub mod compare;
 pub mod ellipsoid;
 pub mod encode;
 pub mod export;

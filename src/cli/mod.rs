@@ -1,5 +1,6 @@
 //! Argument definitions and dispatch for the `ellip` binary.
 
+mod compare;
 mod convert;
 mod decode;
 mod encode;
@@ -26,6 +27,7 @@ Examples:
   ellip decode hand.ellip -o hand.glb           back to a watertight mesh (20000 vertices by default)
   ellip decode hand.ellip -o hand.ply --vertices 100000 --colors
   ellip convert bunny.obj bunny.glb --via-ellip -k 24   mesh → .ellip → mesh in one step
+  ellip compare hand.obj hand2.obj              Hausdorff, RMS and mean distance, normal deviation
   ellip preview bunny.obj -k 12 -o bunny.png    source, regions and decoded mesh side by side";
 
 /// ellip: dense triangle meshes as a few dozen ellipsoidal regions.
@@ -79,6 +81,16 @@ enum Command {
         after_help = "Examples:\n  ellip decode blob3.ellip -o blob3.glb\n  ellip decode blob3.ellip -o blob3.ply --vertices 50000 --colors\n  ellip decode blob3.ellip -o blob3.obj --scheme parametric --json\n  cat blob3.ellip | ellip decode - -o blob3.glb --tolerance 0.001"
     )]
     Decode(decode::DecodeArgs),
+    /// Measure how far apart two meshes are: Hausdorff, RMS and mean distance, normal deviation.
+    ///
+    /// Samples points uniformly by area on each mesh (seeded: the same files give the same
+    /// figures), finds each one's exact closest point on the other mesh, and reports both
+    /// directions and the symmetric figures (the worse direction), absolute and as a
+    /// percentage of A's bounding-box diagonal. A `.ellip` file is decoded and remeshed first.
+    #[command(
+        after_help = "Examples:\n  ellip compare fixtures/meshes/blob1.obj fixtures/meshes/blob2.obj\n  ellip compare bunny.obj bunny.ellip --samples 1000000 --json"
+    )]
+    Compare(compare::CompareArgs),
     /// Draw a mesh, its regions and its decoded mesh side by side into a PNG image.
     ///
     /// A mesh gives three panels: the source in grey, the source coloured by region with the
@@ -130,6 +142,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Encode(args) => encode::run(&args),
         Command::Decode(args) => decode::run(&args),
         Command::Segment(args) => segment::run(&args),
+        Command::Compare(args) => compare::run(&args),
         Command::Preview(args) => preview::run(&args),
         Command::Fixtures(args) => fixtures::run(&args),
     }

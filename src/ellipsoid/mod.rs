@@ -151,6 +151,53 @@ impl Ellipsoid {
         }
     }
 
+    /// The point of the surface closest to `p` (the foot of the normal through `p`).
+    ///
+    /// In local coordinates the foot is x = r²∘q / (r² + t) for the root t > −min r² of
+    /// Σ (rᵢ qᵢ / (rᵢ² + t))² = 1, which decreases on that interval and is found by
+    /// bisection (after Eberly, *Distance from a point to an ellipse, an ellipsoid, or a
+    /// hyperellipsoid*, 2013). Unlike Π it moves a point near the surface along the normal
+    /// only, so points close together stay in order on the surface however oblique the
+    /// radial direction is. Where the foot is not unique (on the inner medial sheet, where
+    /// the root leaves the interval) it falls back to Π(p).
+    pub fn closest_point(&self, p: DVec3) -> DVec3 {
+        let q = self.to_local(p);
+        let r2 = self.radii * self.radii;
+        let scaled = self.radii * q;
+        let f = |t: f64| (scaled / (r2 + DVec3::splat(t))).length_squared() - 1.0;
+        let lo0 = -r2.min_element();
+        let mut lo = lo0;
+        let mut hi = self.radii.max_element() * q.length();
+        if !(hi.is_finite() && q.is_finite()) {
+            return self.project_radially(p);
+        }
+        // f(hi) ≤ 0 by construction; f → +∞ at lo unless the point lies in the plane of the
+        // shortest axis, where the root may not be in the interval.
+        let near_lo = lo + (hi - lo).max(1.0) * 1e-15;
+        if f(near_lo) <= 0.0 {
+            return self.project_radially(p);
+        }
+        for _ in 0..200 {
+            let mid = 0.5 * (lo + hi);
+            if mid <= lo || mid >= hi {
+                break;
+            }
+            if f(mid) > 0.0 {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let t = 0.5 * (lo + hi);
+        let local = r2 * q / (r2 + DVec3::splat(t));
+        let foot = self.center + self.rotation * local;
+        if foot.is_finite() && t > lo0 {
+            foot
+        } else {
+            self.project_radially(p)
+        }
+    }
+
     /// Radial distance ‖p − Π(p)‖; its square is the paper's Euclidean distance E_euc.
     pub fn radial_distance(&self, p: DVec3) -> f64 {
         (p - self.project_radially(p)).length()
@@ -496,5 +543,53 @@ mod tests {
         assert_eq!(EllipsoidSpec::from(e), spec);
         assert!(e.is_valid());
         assert!(!Ellipsoid::sphere(DVec3::ZERO, 0.0).is_valid());
+    }
+
+    #[test]
+    fn closest_point_is_the_foot_of_the_normal_and_beats_brute_force() {
+        let e = Ellipsoid {
+            center: DVec3::new(0.5, -1.0, 2.0),
+            rotation: DQuat::from_euler(glam::EulerRot::XYZ, 0.3, -0.7, 1.2),
+            radii: DVec3::new(3.0, 1.0, 0.4),
+            sign: Sign::Positive,
+        };
+        let mut rng = crate::rng::SplitMix64::new(5);
+        for i in 0..300 {
+            let u = rng.unit_vector();
+            let s = e.from_unit_sphere(u);
+            // Points along the normal from 0.03 inside (less than the smallest radius of
+            // curvature, 0.4²/3 ≈ 0.053, so the foot is unique) to 0.3 outside, and a few far
+            // ones.
+            let offset = if i % 10 == 0 {
+                5.0
+            } else {
+                rng.range_f64(-0.03, 0.3)
+            };
+            let p = s + offset * e.outward_normal(s);
+            let c = e.closest_point(p);
+            assert!(e.implicit(c).abs() < 1e-9, "{i}: not on the surface");
+            // The foot of the normal: p − c is parallel to the normal at c.
+            let n = e.outward_normal(c);
+            let d = p - c;
+            assert!(
+                d.cross(n).length() <= 1e-7 * (1.0 + d.length()),
+                "{i}: not normal"
+            );
+            // No sampled surface point is closer.
+            let best = d.length();
+            for _ in 0..2000 {
+                let v = e.from_unit_sphere(rng.unit_vector());
+                assert!(
+                    (p - v).length() >= best - 1e-9,
+                    "{i}: a closer point exists"
+                );
+            }
+            // Points near the surface keep their own foot.
+            if (0.0..0.3).contains(&offset) {
+                assert!((c - s).length() < 1e-7, "{i}: {c} vs {s}");
+            }
+        }
+        // The centre (a medial point) falls back to Π and stays finite.
+        assert!(e.closest_point(e.center).is_finite());
     }
 }

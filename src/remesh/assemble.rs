@@ -23,7 +23,7 @@
 //! The tolerance's bounding box is that of the boundary points and of the whole-ellipsoid
 //! regions (the part of the output the file pins down before any interior is meshed).
 
-use super::chart::RegionChart;
+use super::chart::{Projection, RegionChart};
 use super::refine::{refine_arcs, RefineSettings};
 use super::triangulate::{
     triangulate_parametric, AdaptiveTriangulation, Corner, RegionInput, RegionMesh,
@@ -111,13 +111,14 @@ pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshe
         max_new_points: (budget / 4).min(options.max_vertices - minimum),
         prune: true,
     };
-    let plan = Plan {
+    let mut plan = Plan {
         rep,
         options,
         budget,
         spacing,
         tolerance,
         areas: &areas,
+        projection: Projection::Closest,
     };
     // Attempts, in order: refined and pruned arcs; the stored arcs, pruned (refined points
     // off the stored polyline can make loops cross where arcs meet at sharp angles or where
@@ -148,12 +149,19 @@ pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshe
             false,
         ),
     ];
+    // Each with the boundary reaching the ellipsoids at their closest points, then along
+    // the rays from their centres (section 5.1's radial map, which suits regions whose
+    // boundary lies deep inside a thin ellipsoid better).
     let mut best: Option<((bool, usize), Remeshed)> = None;
     let mut last_error = None;
-    for (k, (attempt, untangle)) in attempts.iter().enumerate() {
+    let attempts = [Projection::Closest, Projection::Radial]
+        .into_iter()
+        .flat_map(|p| attempts.iter().enumerate().map(move |(k, a)| (p, k, a)));
+    for (projection, k, (attempt, untangle)) in attempts {
         if k == 1 && settings.max_new_points == 0 {
             continue;
         }
+        plan.projection = projection;
         match plan.mesh(attempt, *untangle) {
             Ok(out) => {
                 let c = out.check;
@@ -189,6 +197,8 @@ struct Plan<'a> {
     spacing: f64,
     tolerance: Option<f64>,
     areas: &'a [f64],
+    /// How boundary points reach a region's own ellipsoid in its chart.
+    projection: Projection,
 }
 
 impl Plan<'_> {
@@ -206,10 +216,11 @@ impl Plan<'_> {
             spacing,
             tolerance,
             areas,
+            projection: _,
         } = *self;
         let mut refined = refine_arcs(rep, settings);
         if untangle_arcs {
-            untangle(rep, &mut refined.arcs, &refined.points);
+            untangle(rep, &mut refined.arcs, &refined.points, self.projection);
         }
         let mut pool = Pool::new(&refined.points);
         let mut pieces = Vec::with_capacity(rep.region_count());
@@ -266,7 +277,12 @@ impl Plan<'_> {
                 .map(|l| l.iter().map(|&v| pool.position(v)).collect())
                 .collect();
             let surface = chart_surface(ellipsoid, &loop_points);
-            let chart = RegionChart::new(region, &surface, &loop_points)?;
+            let chart = RegionChart::with_projection(
+                region,
+                &surface,
+                &loop_points,
+                projection_onto(&surface, ellipsoid, self.projection),
+            )?;
             pieces.push(Piece::new(region, chart, &loops, &pool.positions, area));
         }
         if pool.positions.len() > options.max_vertices {
@@ -302,16 +318,18 @@ const UNTANGLE_MAX_POINTS: usize = 200_000;
 /// approximates), the projected boundary can fold over itself. Each crossing drops an
 /// endpoint of one of the crossing segments from the arc it belongs to, for both regions
 /// the arc separates; a few rounds settle it. Deterministic.
-fn untangle(rep: &Representation, chains: &mut [Vec<u32>], points: &[DVec3]) {
+fn untangle(
+    rep: &Representation,
+    chains: &mut [Vec<u32>],
+    points: &[DVec3],
+    projection: Projection,
+) {
     for _ in 0..UNTANGLE_ROUNDS {
         // (arc, position in its chain) of the points to drop.
         let mut drop: Vec<(u32, usize)> = Vec::new();
         for (r, cycles) in rep.cycles.iter().enumerate() {
-            let Some(e) = rep.ellipsoids.get(r) else {
-                continue;
-            };
             if !cycles.is_empty() {
-                region_crossings(r as u32, e, cycles, rep, chains, points, &mut drop);
+                region_crossings(r as u32, rep, chains, points, projection, &mut drop);
             }
         }
         if drop.is_empty() {
@@ -338,13 +356,18 @@ type Droppable = Option<(u32, usize)>;
 /// Finds the crossings of one region's loops in its chart and, for each, a point to drop.
 fn region_crossings(
     region: u32,
-    e: &Ellipsoid,
-    cycles: &[crate::representation::Cycle],
     rep: &Representation,
     chains: &[Vec<u32>],
     points: &[DVec3],
+    projection: Projection,
     drop: &mut Vec<(u32, usize)>,
 ) {
+    let (Some(e), Some(cycles)) = (
+        rep.ellipsoids.get(region as usize),
+        rep.cycles.get(region as usize),
+    ) else {
+        return;
+    };
     // Each loop vertex with the (arc, position) it can be dropped as, if any.
     let mut loops: Vec<Vec<(DVec3, Droppable)>> = Vec::new();
     for cycle in cycles {
@@ -381,7 +404,12 @@ fn region_crossings(
         .map(|l| l.iter().map(|v| v.0).collect())
         .collect();
     let surface = chart_surface(e, &loop_points);
-    let Ok(chart) = RegionChart::new(region, &surface, &loop_points) else {
+    let Ok(chart) = RegionChart::with_projection(
+        region,
+        &surface,
+        &loop_points,
+        projection_onto(&surface, e, projection),
+    ) else {
         return;
     };
     // Segments in the plane: (a, b, which point to drop if it crosses).
@@ -587,7 +615,8 @@ impl Piece {
                     .collect()
             })
             .collect();
-        let chart = RegionChart::new(self.region, &sphere, &loops).ok()?;
+        let chart =
+            RegionChart::with_projection(self.region, &sphere, &loops, Projection::Closest).ok()?;
         Some(Piece {
             chart,
             boundary: self.boundary.clone(),
@@ -673,6 +702,21 @@ fn chart_surface(e: &Ellipsoid, loops: &[Vec<DVec3>]) -> Ellipsoid {
     Ellipsoid {
         radii: e.radii.min(DVec3::splat(cap)),
         ..*e
+    }
+}
+
+/// How boundary points reach a chart's surface: as `preferred` on the region's own
+/// ellipsoid; on a stand-in ([`chart_surface`]), whose interior points go back to the real
+/// ellipsoid along the rays, the closest point is taken on the real ellipsoid and carried
+/// along its ray, so that both agree.
+fn projection_onto(
+    surface: &Ellipsoid,
+    ellipsoid: &Ellipsoid,
+    preferred: Projection,
+) -> Projection {
+    match preferred {
+        Projection::Closest if surface != ellipsoid => Projection::ClosestOnto(*ellipsoid),
+        other => other,
     }
 }
 

@@ -51,6 +51,25 @@ pub struct RegionChart {
     index: EdgeIndex,
     /// The region encloses nothing ([`RegionChart::empty`]).
     empty: bool,
+    /// How points off the surface reach it ([`RegionChart::to_sphere`]).
+    projection: Projection,
+}
+
+/// How a chart maps a point that is not on its ellipsoid (a stored boundary point) to the
+/// surface.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Projection {
+    /// The closest surface point ([`Ellipsoid::closest_point`]), the default: it moves a
+    /// point along the normal only, so boundary points close together keep their order
+    /// however oblique the ray from the centre is.
+    #[default]
+    Closest,
+    /// Along the ray from the centre (Π, paper section 2).
+    Radial,
+    /// The closest point on this ellipsoid, then along its ray: for a stand-in chart surface
+    /// that shares the real ellipsoid's centre and rays but not its radii, so that boundary
+    /// points reach the stand-in where interior points are lifted back from.
+    ClosestOnto(Ellipsoid),
 }
 
 impl RegionChart {
@@ -77,11 +96,24 @@ impl RegionChart {
         ellipsoid: &Ellipsoid,
         loops: &[Vec<DVec3>],
     ) -> Result<RegionChart, RemeshError> {
+        RegionChart::with_projection(region, ellipsoid, loops, Projection::Closest)
+    }
+
+    /// [`RegionChart::new`] with the boundary points mapped to the surface by `projection`.
+    pub fn with_projection(
+        region: u32,
+        ellipsoid: &Ellipsoid,
+        loops: &[Vec<DVec3>],
+        projection: Projection,
+    ) -> Result<RegionChart, RemeshError> {
         let fail = |what: &'static str| RemeshError::Region { region, what };
         if !ellipsoid.is_valid() {
             return Err(fail("ellipsoid not valid"));
         }
-        let probe = RegionChart::with_pole(ellipsoid, DVec3::Z);
+        let probe = RegionChart {
+            projection,
+            ..RegionChart::with_pole(ellipsoid, DVec3::Z)
+        };
         let mut sphere_loops = Vec::with_capacity(loops.len());
         for l in loops {
             if l.iter().any(|p| !p.is_finite()) {
@@ -102,7 +134,10 @@ impl RegionChart {
         let (pole, clearance) = choose_pole(ellipsoid, &sphere_loops).ok_or(fail(
             "no pole outside the region (its boundary loops enclose nothing)",
         ))?;
-        let mut chart = RegionChart::with_pole(ellipsoid, pole);
+        let mut chart = RegionChart {
+            projection,
+            ..RegionChart::with_pole(ellipsoid, pole)
+        };
         chart.plane_loops = project_loops(&chart, &sphere_loops);
         chart.clearance = clearance;
         chart.index = EdgeIndex::new(&chart.plane_loops);
@@ -121,6 +156,7 @@ impl RegionChart {
             clearance: std::f64::consts::PI,
             index: EdgeIndex::default(),
             empty: false,
+            projection: Projection::Closest,
         }
     }
 
@@ -161,10 +197,17 @@ impl RegionChart {
         &self.plane_loops
     }
 
-    /// A point (on or near the ellipsoid) → its radial projection's unit-sphere direction.
+    /// A point (on or near the ellipsoid) → the unit-sphere direction of its closest surface
+    /// point ([`Ellipsoid::closest_point`]: along the normal, so nearby boundary points keep
+    /// their order however oblique the radial direction is).
     pub fn to_sphere(&self, p: DVec3) -> DVec3 {
+        let surface = match self.projection {
+            Projection::Closest => self.ellipsoid.closest_point(p),
+            Projection::Radial => p,
+            Projection::ClosestOnto(real) => real.closest_point(p),
+        };
         self.ellipsoid
-            .to_unit_sphere(p)
+            .to_unit_sphere(surface)
             .try_normalize()
             .unwrap_or(DVec3::X)
     }
@@ -200,7 +243,12 @@ impl RegionChart {
     /// 5.1). Non-finite points are outside; the ellipsoid's centre counts as the direction of
     /// its local +x axis.
     pub fn contains(&self, p: DVec3) -> bool {
-        p.is_finite() && self.contains_sphere(self.to_sphere(p))
+        let u = self
+            .ellipsoid
+            .to_unit_sphere(p)
+            .try_normalize()
+            .unwrap_or(DVec3::X);
+        p.is_finite() && self.contains_sphere(u)
     }
 
     /// Whether the unit-sphere direction `u` lies in the region. The pole is outside (unless
@@ -777,9 +825,11 @@ mod tests {
         assert!(region_error(&[good[..2].to_vec()]).contains("fewer than 3"));
         assert!(region_error(&[vec![good[0]; 10]]).contains("fewer than 3"));
         assert!(region_error(&[vec![]]).contains("fewer than 3"));
-        // Three pool points on one ray from the centre are one direction.
-        let ray = [1.0, 2.0, 3.0].map(|s| e.center + DVec3::X * s).to_vec();
-        assert!(region_error(&[ray]).contains("fewer than 3"));
+        // Three pool points on one normal line of the surface reach it at one point.
+        let foot = e.from_unit_sphere(DVec3::X);
+        let normal = e.outward_normal(foot);
+        let line = [0.01, 0.02, 0.03].map(|s| foot + normal * s).to_vec();
+        assert!(region_error(&[line]).contains("fewer than 3"));
         // Back and forth along a path: distinct points, yet the loop encloses nothing.
         let path = circle(DVec3::Z, 1.0, 20, false)[..10]
             .iter()

@@ -99,12 +99,14 @@ impl RemeshOptions {
         Ok(())
     }
 
-    /// The vertex budget for `rep`: the option, else the file's suggestion, else
-    /// [`DEFAULT_VERTICES`]; capped at `max_vertices`, at least 1.
+    /// The vertex budget for `rep`: the option, else the file's suggestion, else the source
+    /// mesh's vertex count (when the file gives one), else [`DEFAULT_VERTICES`]; capped at
+    /// `max_vertices`, at least 1.
     pub fn budget(&self, rep: &Representation) -> usize {
-        let suggested = rep
-            .metadata
+        let m = &rep.metadata;
+        let suggested = m
             .suggested_vertices
+            .or((m.source_vertices > 0).then_some(m.source_vertices))
             .map(|n| usize::try_from(n).unwrap_or(usize::MAX));
         self.vertices
             .or(suggested)

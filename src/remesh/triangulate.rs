@@ -639,8 +639,9 @@ fn distance_to_segment(p: DVec2, a: DVec2, b: DVec2) -> f64 {
 ///
 /// `interior_vertices` is a target, not exact: the grid is sized from the region's share of
 /// the sphere (the spherical area of its boundary-only triangulation), then resized once from
-/// the count it gave. Very thin regions get a coarser grid: at most
-/// `max(64·interior_vertices, 2²⁰)` grid points are tested.
+/// the count it gave; if it still gives more than twice the request, an evenly spread subset
+/// of the requested size is kept. Very thin regions get a coarser grid: at most
+/// `max(16·interior_vertices, 2¹⁶)` grid points are tested.
 ///
 /// Errors: as [`AdaptiveTriangulation::new`].
 pub fn triangulate_parametric(
@@ -662,6 +663,14 @@ pub fn triangulate_parametric(
             points = inner.grid_points(rows, interior_vertices);
         }
     }
+    // A share estimate far off (hostile or degenerate boundaries) can still overshoot: keep
+    // an evenly spread subset, so the cost stays proportional to the request.
+    if points.len() > 2 * interior_vertices {
+        let stride = points.len() as f64 / interior_vertices as f64;
+        points = (0..interior_vertices)
+            .filter_map(|k| points.get((k as f64 * stride) as usize).copied())
+            .collect();
+    }
     let mut hint = None;
     for (plane, point) in points {
         let at = match hint {
@@ -680,7 +689,7 @@ pub fn triangulate_parametric(
 }
 
 /// Largest number of grid points [`triangulate_parametric`] tests, at least.
-const MIN_GRID_BUDGET: f64 = (1u64 << 20) as f64;
+const MIN_GRID_BUDGET: f64 = (1u64 << 16) as f64;
 
 impl RegionCdt {
     /// The region's share of the unit sphere: the spherical area of its inside faces' corner
@@ -707,7 +716,7 @@ impl RegionCdt {
     fn grid_points(&self, rows: f64, target: usize) -> Vec<(DVec2, DVec3)> {
         use std::f64::consts::{FRAC_PI_2, PI};
         let (low, high) = self.elevation_range();
-        let budget = (64.0 * target as f64).max(MIN_GRID_BUDGET);
+        let budget = (16.0 * target as f64).max(MIN_GRID_BUDGET);
         // Rows within the range times 2·rows azimuths must stay within the budget.
         let span = ((high - low) / PI).clamp(1e-9, 1.0);
         let rows = rows.min((budget / (2.0 * span)).sqrt()).max(2.0).floor();
