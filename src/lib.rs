@@ -44,6 +44,7 @@
 //! | store | [`format`](mod@format) | the `.ellip` file: versioned encoder, hardened decoder (`spec/ELLIP.md`) |
 //! | remesh | [`remesh`] | regions back to a watertight triangle mesh: charts, spade CDT, ray query |
 //! | measure | [`compare`] | distances between two meshes: Hausdorff, RMS, mean, normal deviation |
+//! | show | [`preview`] | meshes side by side in a PNG: software rasteriser, region colours and boundaries |
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
@@ -55,6 +56,7 @@ pub mod export;
 pub mod format;
 pub mod import;
 pub mod mesh;
+pub mod preview;
 pub mod remesh;
 pub mod representation;
 pub mod rng;

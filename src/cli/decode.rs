@@ -7,12 +7,12 @@
 //! (the file then holds one open piece per region; without `--colors` it is one watertight
 //! mesh).
 
-use super::segment::palette;
 use super::{refuse_overwriting, shown, CliError};
 use clap::{Args, ValueEnum};
 use ellip::export::{write_mesh, MeshData};
 use ellip::format::{decode, Limits};
 use ellip::import::MeshFormat;
+use ellip::preview::palette::palette;
 use ellip::remesh::{remesh, RemeshOptions, Remeshed, Scheme};
 use ellip::representation::Representation;
 use glam::DVec3;
