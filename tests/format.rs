@@ -449,14 +449,18 @@ fn invalid_fixtures() -> Vec<(&'static str, Vec<u8>)> {
         "format-ELPS-E0-unknown-precision",
         assemble(1, 0, 0, &edit(&s, TAG_ELPS, |raw| raw[1] = 7)),
     ));
-    // ARCS of the lunes: count 3; arc 0 = closed 0, left 0, right 3, length 5, codes 0 0 0 0 0.
+    // ARCS of the lunes: count 3; arc 0 = closed 0, length 5, codes 0 0 0 0 0.
     out.push((
         "format-ARCS-A3-reference-before-use",
-        assemble(1, 0, 0, &edit(&l, TAG_ARCS, |raw| raw[6] = 9)),
-    ));
-    out.push((
-        "format-ARCS-A2-arc-between-a-region-and-itself",
-        assemble(1, 0, 0, &edit(&l, TAG_ARCS, |raw| raw[3] = 1)),
+        assemble(
+            1,
+            0,
+            0,
+            &edit(&l, TAG_ARCS, |raw| {
+                assert_eq!(raw[..3], [3, 0, 5]);
+                raw[4] = 9;
+            }),
+        ),
     ));
     // CYCL of the lunes: regions 3; region 0: 1 cycle, outer 1, 2 refs: 0 (arc 0), 3 (arc 1
     // reversed). Make the second ref arc 0 forward again.

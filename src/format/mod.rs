@@ -277,7 +277,7 @@ fn decode_with_details(
 
     let raw = required(payload(TAG_ARCS)?, TAG_ARCS)?;
     let mut r = Reader::new(TAG_ARCS, &raw);
-    let arcs = sections::read_arcs(&mut r, limits)?;
+    let mut arcs = sections::read_arcs(&mut r, limits)?;
     finish(r)?;
     drop(raw);
 
@@ -292,6 +292,7 @@ fn decode_with_details(
     let cycles = sections::read_cycles(&mut r, limits, ellipsoids.len())?;
     finish(r)?;
     drop(raw);
+    sections::assign_sides(&mut arcs.arcs, &cycles)?;
 
     let rep = Representation {
         ellipsoids,

@@ -298,14 +298,9 @@ fn prediction(i: usize, predecessor: &[Option<u32>], q: &[[u32; 3]]) -> ([i64; 3
 pub(crate) fn write_arcs(rep: &Representation, canon: &Canonical) -> Result<Vec<u8>, EncodeError> {
     let mut w = Writer::new(TAG_ARCS);
     w.put_count(rep.arcs.len())?;
+    // The regions on either side are not stored: the cycles name them (§6.5).
     for (arc, codes) in rep.arcs.iter().zip(&canon.codes) {
         w.put(&arc.closed)?;
-        w.put(&arc.left)?;
-        let right: u32 = match arc.right {
-            Side::Border => 0,
-            Side::Region(r) => r.saturating_add(1),
-        };
-        w.put(&right)?;
         w.put_count(codes.len())?;
         for c in codes {
             w.put(c)?;
@@ -321,8 +316,8 @@ pub(crate) struct ArcsRead {
     pub(crate) predecessor: Vec<Option<u32>>,
 }
 
-/// Smallest encoded arc: closed, left, right, length, and two one-byte codes.
-const MIN_ARC_BYTES: u64 = 6;
+/// Smallest encoded arc: closed, length, and two one-byte codes.
+const MIN_ARC_BYTES: u64 = 4;
 
 pub(crate) fn read_arcs(r: &mut Reader<'_>, limits: &Limits) -> Result<ArcsRead, DecodeError> {
     let n = r.count("arcs", limits.max_arcs.min(MAX_ARCS), MIN_ARC_BYTES)?;
@@ -333,8 +328,6 @@ pub(crate) fn read_arcs(r: &mut Reader<'_>, limits: &Limits) -> Result<ArcsRead,
     let mut arc_points = 0u64;
     for _ in 0..n {
         let closed: bool = r.get("A0: closed flag is not a bool")?;
-        let left: u32 = r.get("A1: left region is not a u32 varint")?;
-        let right: u32 = r.get("A2: right side is not a u32 varint")?;
         let len = r.count_more("arc points", arc_points, max_arc_points, 1)?;
         arc_points += len as u64;
         let mut points = Vec::with_capacity(len);
@@ -354,14 +347,12 @@ pub(crate) fn read_arcs(r: &mut Reader<'_>, limits: &Limits) -> Result<ArcsRead,
             points.push(index);
             prev = Some(index);
         }
+        // Sides are filled in from the cycles ([`assign_sides`]).
         arcs.push(Arc {
             points,
             closed,
-            left,
-            right: match right.checked_sub(1) {
-                None => Side::Border,
-                Some(k) => Side::Region(k),
-            },
+            left: u32::MAX,
+            right: Side::Border,
         });
     }
     Ok(ArcsRead { arcs, predecessor })
@@ -512,4 +503,43 @@ pub(crate) fn read_cycles(
         out.push(cycles);
     }
     Ok(out)
+}
+
+/// Each arc's regions from the cycles that use it (spec §6.5): the region whose cycle walks
+/// it forward is on its left, the one whose cycle walks it backward on its right; an arc no
+/// cycle walks backward lies on the border. An arc walked forward twice, backward twice, or
+/// never forward breaks C5.
+pub(crate) fn assign_sides(arcs: &mut [Arc], cycles: &[Vec<Cycle>]) -> Result<(), DecodeError> {
+    let c5 = |what| DecodeError::Format {
+        section: Some(TAG_CYCL),
+        what,
+    };
+    let mut right_seen = vec![false; arcs.len()];
+    for (region, list) in cycles.iter().enumerate() {
+        let region = u32::try_from(region).map_err(|_| c5("C1: too many regions"))?;
+        for cycle in list {
+            for a in &cycle.arcs {
+                let i = a.arc as usize;
+                let Some(arc) = arcs.get_mut(i) else {
+                    return Err(c5("C2: arc index out of range"));
+                };
+                if a.reversed {
+                    if right_seen[i] {
+                        return Err(c5("C5: an arc walked backward twice"));
+                    }
+                    right_seen[i] = true;
+                    arc.right = Side::Region(region);
+                } else {
+                    if arc.left != u32::MAX {
+                        return Err(c5("C5: an arc walked forward twice"));
+                    }
+                    arc.left = region;
+                }
+            }
+        }
+    }
+    if arcs.iter().any(|a| a.left == u32::MAX) {
+        return Err(c5("C5: an arc no cycle walks forward"));
+    }
+    Ok(())
 }
