@@ -65,4 +65,9 @@ pub mod synth;
 
 mod atomic;
 
+/// The README's Rust examples, compiled and run as doc tests.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;
+
 pub use mesh::{Aabb, Mesh, MeshError};
