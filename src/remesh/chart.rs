@@ -345,11 +345,14 @@ fn fibonacci_directions(n: usize) -> Vec<DVec3> {
 }
 
 /// The angle between two unit vectors, accurate for small and large angles.
+#[cfg(test)]
 fn angle_between(a: DVec3, b: DVec3) -> f64 {
     a.cross(b).length().atan2(a.dot(b))
 }
 
-/// Angular distance from `c` to the shorter great-circle arc from `a` to `b` (all unit).
+/// Angular distance from `c` to the shorter great-circle arc from `a` to `b` (all unit): the
+/// reference [`arc_chord_squared`] is tested against.
+#[cfg(test)]
 fn arc_distance(c: DVec3, a: DVec3, b: DVec3) -> f64 {
     let ends = angle_between(c, a).min(angle_between(c, b));
     let Some(n) = a.cross(b).try_normalize() else {
@@ -364,15 +367,40 @@ fn arc_distance(c: DVec3, a: DVec3, b: DVec3) -> f64 {
 }
 
 /// Angular distance from `c` to the nearest edge of the loops.
+///
+/// The minimum is taken over squared chord lengths, which grow with the angle, and turned
+/// into an angle once: no inverse trigonometry per edge (the pole search calls this for
+/// hundreds of candidates against every boundary edge).
 fn boundary_distance(c: DVec3, loops: &[Vec<DVec3>]) -> f64 {
     let mut best = f64::INFINITY;
     for l in loops {
         for (i, &a) in l.iter().enumerate() {
             let b = l.get(i + 1).or(l.first()).copied().unwrap_or(a);
-            best = best.min(arc_distance(c, a, b));
+            best = best.min(arc_chord_squared(c, a, b));
         }
     }
-    best
+    if best.is_finite() {
+        2.0 * (0.5 * best.max(0.0).sqrt()).min(1.0).asin()
+    } else {
+        best
+    }
+}
+
+/// Squared chord length from `c` to its nearest point on the shorter great-circle arc from
+/// `a` to `b` (all unit): 4·sin²(θ/2) for the angular distance θ of [`arc_distance`].
+fn arc_chord_squared(c: DVec3, a: DVec3, b: DVec3) -> f64 {
+    let ends = (c - a).length_squared().min((c - b).length_squared());
+    let Some(n) = a.cross(b).try_normalize() else {
+        return ends;
+    };
+    if a.cross(c).dot(n) >= 0.0 && c.cross(b).dot(n) >= 0.0 {
+        // sin θ = |c·n|; chord² = 2 − 2 cos θ = 2 sin²θ / (1 + cos θ), without cancellation.
+        let s = c.dot(n).abs().min(1.0);
+        let cos = (1.0 - s * s).max(0.0).sqrt();
+        (2.0 * s * s / (1.0 + cos)).min(ends)
+    } else {
+        ends
+    }
 }
 
 /// Unit-sphere loops (region on the left, seen from outside) → plane loops with the region
@@ -616,6 +644,30 @@ impl EdgeIndex {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn boundary_distance_equals_the_nearest_arc_by_angle() {
+        let mut rng = SplitMix64::new(23);
+        for _ in 0..200 {
+            let loops: Vec<Vec<DVec3>> = (0..2)
+                .map(|_| (0..7).map(|_| rng.unit_vector()).collect())
+                .collect();
+            let c = rng.unit_vector();
+            let reference = loops
+                .iter()
+                .flat_map(|l| (0..l.len()).map(move |i| (l[i], l[(i + 1) % l.len()])))
+                .map(|(a, b)| arc_distance(c, a, b))
+                .fold(f64::INFINITY, f64::min);
+            let fast = boundary_distance(c, &loops);
+            assert!((fast - reference).abs() < 1e-12, "{fast} vs {reference}");
+        }
+        // Tiny distances keep their precision.
+        let a = DVec3::X;
+        let b = DVec3::new(0.0, 1.0, 0.0);
+        let c = DVec3::new(1.0, 1.0, 1e-9).normalize();
+        let d = boundary_distance(c, &[vec![a, b, DVec3::new(0.0, 0.0, -1.0)]]);
+        assert!((d - arc_distance(c, a, b)).abs() < 1e-20, "{d}");
+    }
+
     use super::*;
     use crate::rng::SplitMix64;
 
