@@ -6,8 +6,8 @@
 use ellip::ellipsoid::{Ellipsoid, Sign};
 use ellip::import::{read_mesh, ImportOptions};
 use ellip::segment::{
-    segment, segment_with, EllipsoidMetric, Mode, Progress, ProxyMetric, RegionCount, SegmentError,
-    SegmentOptions, Segmentation, WeightOverrides,
+    segment, segment_with, split_regions, EllipsoidMetric, Mode, Progress, ProxyMetric,
+    RegionCount, SegmentError, SegmentOptions, Segmentation, WeightOverrides,
 };
 use ellip::synth::blob::distance_to_ellipsoid;
 use ellip::synth::EllipsoidSpec;
@@ -531,4 +531,52 @@ fn bad_options_are_refused() {
     .unwrap();
     let s = segment(&tiny, &fixed(4, 3)).unwrap();
     check_partition(&tiny, &s);
+}
+
+#[test]
+fn splitting_a_region_cuts_only_its_faces() {
+    let mesh = fixture("blob2");
+    let options = fixed(3, 20);
+    let metric = EllipsoidMetric::new(&mesh, &options).unwrap();
+    let before = segment_with(&mesh, &metric, &options, &mut |_| {}).unwrap();
+    let host = 0u32;
+    let after = split_regions(&mesh, &metric, &options, &before, &[host], &mut |_| {}).unwrap();
+    assert_eq!(after.region_count(), before.region_count() + 1);
+    check_partition(&mesh, &after);
+    // Faces outside the host keep their region; the new region lies inside the host.
+    for (f, (&a, &b)) in before.labels.iter().zip(&after.labels).enumerate() {
+        if a != host {
+            assert_eq!(a, b, "face {f} outside the host changed region");
+        }
+    }
+    let new = before.region_count() as u32;
+    let new_faces = after.labels.iter().filter(|&&r| r == new).count();
+    let host_faces = before.labels.iter().filter(|&&r| r == host).count();
+    assert!(
+        new_faces >= host_faces / 10 && new_faces <= host_faces * 9 / 10,
+        "the new region has {new_faces} of the host's {host_faces} faces"
+    );
+    // Two ellipsoids fit the host's faces at least as well as one did (5 % slack: the
+    // fits are local optima).
+    let error_of = |s: &Segmentation<Ellipsoid>, regions: &[u32]| -> f64 {
+        regions.iter().map(|&r| s.region_errors[r as usize]).sum()
+    };
+    assert!(error_of(&after, &[host, new]) <= 1.05 * error_of(&before, &[host]));
+    // Deterministic.
+    let again = split_regions(&mesh, &metric, &options, &before, &[host], &mut |_| {}).unwrap();
+    assert_eq!(after.labels, again.labels);
+}
+
+#[test]
+fn splitting_refuses_bad_hosts() {
+    let mesh = fixture("blob2");
+    let options = fixed(3, 5);
+    let metric = EllipsoidMetric::new(&mesh, &options).unwrap();
+    let s = segment_with(&mesh, &metric, &options, &mut |_| {}).unwrap();
+    for hosts in [&[3u32][..], &[0, 0], &[u32::MAX]] {
+        assert!(matches!(
+            split_regions(&mesh, &metric, &options, &s, hosts, &mut |_| {}),
+            Err(SegmentError::InvalidOption { .. })
+        ));
+    }
 }

@@ -24,7 +24,7 @@ pub struct EncodeArgs {
     #[command(flatten)]
     segmentation: SegmentationArgs,
     /// Bits per axis of the boundary-point grid, 1 to 24; the worst-case point error is half
-    /// a grid step, diagonal / (2·(2^B − 1)). Default: the resolution (8 to 16 bits) that
+    /// a grid step, diagonal / (2·(2^B − 1)). Default: the resolution (10 to 16 bits) that
     /// gives the smallest file within the boundary tolerance.
     #[arg(long, value_name = "B")]
     bits: Option<u8>,
@@ -41,6 +41,12 @@ pub struct EncodeArgs {
     /// --report).
     #[arg(long, value_name = "N")]
     max_bytes: Option<usize>,
+    /// Write the segmentation as it is, without decoding the file to check it. By default
+    /// the encoder decodes what it wrote and splits each region that does not mesh cleanly
+    /// (its boundary folds in its chart, or its triangles flip), so the file may hold more
+    /// regions than -k asks for.
+    #[arg(long)]
+    no_verify: bool,
     /// Print the report as JSON on stdout (not with `-o -`).
     #[arg(long)]
     json: bool,
@@ -59,6 +65,13 @@ struct EncodeReport {
     vertices: usize,
     faces: usize,
     regions: usize,
+    /// Regions the segmentation was asked for; `regions` is larger when the decoder check
+    /// split some.
+    requested_regions: usize,
+    /// Rounds of region splitting the decoder check needed.
+    split_rounds: usize,
+    /// "clean", "not checked" (--no-verify), or what is still wrong with the decoded file.
+    decode_check: String,
     arcs: usize,
     boundary_points: usize,
     points_after_simplification: usize,
@@ -108,6 +121,7 @@ pub fn run(args: &EncodeArgs) -> Result<(), CliError> {
         segment: args.segmentation.options(false)?,
         simplify_tolerance: args.simplify,
         bits: args.bits,
+        verify: !args.no_verify,
         ..EncodeSettings::default()
     };
     let imported = read_mesh(&args.input, &args.read.import_options()?)?;
@@ -179,6 +193,13 @@ pub fn run(args: &EncodeArgs) -> Result<(), CliError> {
         vertices: mesh.vertex_count(),
         faces: mesh.face_count(),
         regions: summary.regions,
+        requested_regions: encoded.verification.requested_regions,
+        split_rounds: encoded.verification.rounds,
+        decode_check: match (&encoded.verification.problem, args.no_verify) {
+            (_, true) => "not checked".into(),
+            (None, false) => "clean".into(),
+            (Some(p), false) => p.clone(),
+        },
         arcs: summary.arcs,
         boundary_points: encoded.boundary_points,
         points_after_simplification: summary.points,
@@ -211,6 +232,13 @@ pub fn run(args: &EncodeArgs) -> Result<(), CliError> {
     } else if !args.quiet {
         print_report(&report);
     }
+    if let (Some(problem), false) = (&encoded.verification.problem, args.quiet) {
+        eprintln!(
+            "warning: {}: the file {problem} at its default density, even after {} rounds of \
+             splitting regions",
+            report.output, encoded.verification.rounds
+        );
+    }
     Ok(())
 }
 
@@ -220,6 +248,12 @@ fn print_report(r: &EncodeReport) {
         "wrote {}: {} bytes — {} regions, {} arcs, {} boundary points ({} before simplification), {} bits",
         r.output, r.bytes, r.regions, r.arcs, r.points_after_simplification, r.boundary_points, r.bits
     );
+    if r.regions != r.requested_regions {
+        eprintln!(
+            "{} regions asked for, {} stored: {} round(s) split the regions the decoder could not mesh cleanly",
+            r.requested_regions, r.regions, r.split_rounds
+        );
+    }
     eprintln!(
         "ratio {:.1}:1 to the input file ({} bytes), {:.1}:1 to raw float32 positions + u32 indices ({} bytes)",
         r.ratio_to_input, r.input_bytes, r.ratio_to_raw, r.raw_bytes

@@ -77,8 +77,17 @@ impl MeshCheck {
     }
 }
 
-/// Remeshes every region and joins them (see [`super::remesh`] and the module doc).
-pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshed, RemeshError> {
+/// What every attempt of [`assemble`] starts from: the budget, the spacing, the tolerance
+/// in model units, the regions' estimated areas and the first attempt's refinement.
+struct Prepared {
+    budget: usize,
+    spacing: f64,
+    tolerance: Option<f64>,
+    areas: Vec<f64>,
+    settings: RefineSettings,
+}
+
+fn prepare(rep: &Representation, options: &RemeshOptions) -> Result<Prepared, RemeshError> {
     rep.validate()?;
     options.validate()?;
     let budget = options.budget(rep);
@@ -111,6 +120,54 @@ pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshe
         max_new_points: (budget / 4).min(options.max_vertices - minimum),
         prune: true,
     };
+    Ok(Prepared {
+        budget,
+        spacing,
+        tolerance,
+        areas,
+        settings,
+    })
+}
+
+/// The regions whose chart or boundary triangulation fails in the decoder's first attempt
+/// (refined, untangled arcs reaching the ellipsoids at their closest points), all of them
+/// rather than the first: what [`assemble`] would have to fall back from. Increasing order.
+pub fn region_faults(
+    rep: &Representation,
+    options: &RemeshOptions,
+) -> Result<Vec<u32>, RemeshError> {
+    let Prepared {
+        budget,
+        spacing,
+        tolerance,
+        areas,
+        settings,
+    } = prepare(rep, options)?;
+    let plan = Plan {
+        rep,
+        options,
+        budget,
+        spacing,
+        tolerance,
+        areas: &areas,
+        projection: Projection::Closest,
+    };
+    let mut faults = Vec::new();
+    plan.pieces(&settings, true, Some(&mut faults))?;
+    faults.sort_unstable();
+    faults.dedup();
+    Ok(faults)
+}
+
+/// Remeshes every region and joins them (see [`super::remesh`] and the module doc).
+pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshed, RemeshError> {
+    let Prepared {
+        budget,
+        spacing,
+        tolerance,
+        areas,
+        settings,
+    } = prepare(rep, options)?;
     let mut plan = Plan {
         rep,
         options,
@@ -209,14 +266,39 @@ impl Plan<'_> {
         settings: &RefineSettings,
         untangle_arcs: bool,
     ) -> Result<Remeshed, RemeshError> {
+        let (positions, pieces) = self.pieces(settings, untangle_arcs, None)?;
         let Plan {
             rep,
             options,
             budget,
             spacing,
             tolerance,
+            ..
+        } = *self;
+        let meshes = match options.scheme {
+            Scheme::Adaptive => {
+                triangulate_adaptive(&pieces, positions.len(), budget, tolerance, spacing)?
+            }
+            Scheme::Parametric => triangulate_by_area(&pieces, positions.len(), budget)?,
+        };
+        join(rep, options.max_vertices, positions, &pieces, meshes)
+    }
+
+    /// The boundary vertex pool and every piece in its chart, settled
+    /// ([`settle_charts`]). With `faults`, a region whose chart or boundary triangulation
+    /// fails is noted there and left out instead of ending the attempt.
+    fn pieces(
+        &self,
+        settings: &RefineSettings,
+        untangle_arcs: bool,
+        mut faults: Option<&mut Vec<u32>>,
+    ) -> Result<(Vec<DVec3>, Vec<Piece>), RemeshError> {
+        let Plan {
+            rep,
+            options,
+            spacing,
             areas,
-            projection: _,
+            ..
         } = *self;
         let mut refined = refine_arcs(rep, settings);
         if untangle_arcs {
@@ -277,12 +359,22 @@ impl Plan<'_> {
                 .map(|l| l.iter().map(|&v| pool.position(v)).collect())
                 .collect();
             let surface = chart_surface(ellipsoid, &loop_points);
-            let chart = RegionChart::with_projection(
+            let chart = match RegionChart::with_projection(
                 region,
                 &surface,
                 &loop_points,
                 projection_onto(&surface, ellipsoid, self.projection),
-            )?;
+            ) {
+                Ok(chart) => chart,
+                Err(RemeshError::Region { region, .. }) if faults.is_some() => {
+                    faults
+                        .as_deref_mut()
+                        .into_iter()
+                        .for_each(|f| f.push(region));
+                    continue;
+                }
+                Err(e) => return Err(e),
+            };
             pieces.push(Piece::new(region, chart, &loops, &pool.positions, area));
         }
         if pool.positions.len() > options.max_vertices {
@@ -292,14 +384,8 @@ impl Plan<'_> {
             });
         }
 
-        settle_charts(rep, &mut pieces, spacing / 4.0)?;
-        let meshes = match options.scheme {
-            Scheme::Adaptive => {
-                triangulate_adaptive(&pieces, pool.positions.len(), budget, tolerance, spacing)?
-            }
-            Scheme::Parametric => triangulate_by_area(&pieces, pool.positions.len(), budget)?,
-        };
-        join(rep, options.max_vertices, pool.positions, &pieces, meshes)
+        settle_charts(rep, &mut pieces, spacing / 4.0, faults)?;
+        Ok((pool.positions, pieces))
     }
 }
 
@@ -656,23 +742,29 @@ impl Piece {
 
 /// Replaces the chart of every piece whose boundary-only triangulation fails by the view
 /// from beneath it, if that one triangulates; otherwise returns the first failure.
+/// With `faults`, every piece that fails is noted there instead.
 fn settle_charts(
     rep: &Representation,
     pieces: &mut [Piece],
     min_spacing: f64,
+    mut faults: Option<&mut Vec<u32>>,
 ) -> Result<(), RemeshError> {
     for piece in pieces.iter_mut() {
         let Err(error) = AdaptiveTriangulation::new(&piece.input(), min_spacing) else {
             continue;
         };
-        let Some(e) = rep.ellipsoids.get(piece.region as usize) else {
-            return Err(error);
-        };
-        match piece.view_from_beneath(e) {
+        let other = rep
+            .ellipsoids
+            .get(piece.region as usize)
+            .and_then(|e| piece.view_from_beneath(e));
+        match other {
             Some(other) if AdaptiveTriangulation::new(&other.input(), min_spacing).is_ok() => {
                 *piece = other;
             }
-            _ => return Err(error),
+            _ => match faults.as_deref_mut() {
+                Some(f) => f.push(piece.region),
+                None => return Err(error),
+            },
         }
     }
     Ok(())
@@ -1191,6 +1283,54 @@ fn region_area(e: &Ellipsoid, loops: &[Vec<DVec3>]) -> f64 {
         .sum::<f64>()
         / count as f64;
     sphere_area * scale
+}
+
+/// The regions to blame for what [`check_mesh`] found wrong with a remeshed representation,
+/// in increasing order: the regions of degenerate and flipped triangles, and of the
+/// triangles on edges used by more than two triangles (or by one, when the representation
+/// has no border arcs, or by two running it the same way). Empty when the mesh is clean, or when its faults (a vertex with two
+/// fans of triangles) name no edge.
+pub fn problem_regions(rep: &Representation, out: &Remeshed) -> Vec<u32> {
+    let mesh = &out.mesh;
+    let mut blamed = std::collections::BTreeSet::new();
+    let diagonal = mesh.bounding_box().map_or(0.0, |b| b.diagonal());
+    let min_area = DEGENERATE_AREA * diagonal * diagonal;
+    for (f, &r) in out.face_regions.iter().enumerate().take(mesh.face_count()) {
+        let area = mesh.face_area(f);
+        let bad = area.is_nan()
+            || area <= min_area
+            || rep
+                .ellipsoids
+                .get(r as usize)
+                .is_some_and(|e| mesh.face_normal(f).dot(e.normal(mesh.face_centroid(f))) < 0.0);
+        if bad {
+            blamed.insert(r);
+        }
+    }
+    let c = out.check;
+    if !(c.manifold && c.consistently_oriented && (c.closed || c.has_border_arcs)) {
+        // Per undirected edge, its faces and whether each runs it from the lower vertex.
+        let mut uses: HashMap<(u32, u32), Vec<(u32, bool)>> = HashMap::new();
+        for (f, tri) in mesh.faces().iter().enumerate() {
+            for k in 0..3 {
+                let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                uses.entry((a.min(b), a.max(b)))
+                    .or_default()
+                    .push((f as u32, a < b));
+            }
+        }
+        for faces in uses.values() {
+            let same_way = faces.len() == 2 && faces[0].1 == faces[1].1;
+            if faces.len() > 2 || (faces.len() == 1 && !c.has_border_arcs) || same_way {
+                for &(f, _) in faces {
+                    if let Some(&r) = out.face_regions.get(f as usize) {
+                        blamed.insert(r);
+                    }
+                }
+            }
+        }
+    }
+    blamed.into_iter().collect()
 }
 
 #[cfg(test)]

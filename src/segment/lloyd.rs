@@ -61,6 +61,7 @@
 
 use super::{Progress, ProxyMetric, RegionCount, SegmentError, SegmentOptions, Segmentation};
 use crate::mesh::Mesh;
+use glam::DVec3;
 use rayon::prelude::*;
 use std::cmp::Ordering;
 use std::collections::{BinaryHeap, HashSet};
@@ -175,6 +176,9 @@ struct Lloyd<'a, M: ProxyMetric> {
     per_vertex: bool,
     /// Scratch: errors of every vertex against the regions of its faces (per-vertex metrics).
     vertex_cache: Vec<Candidates>,
+    /// Faces the flooding must leave with their region ([`split`]: all but the hosts'); empty:
+    /// none.
+    frozen: Vec<bool>,
 }
 
 pub(super) fn run<M: ProxyMetric>(
@@ -184,50 +188,136 @@ pub(super) fn run<M: ProxyMetric>(
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Segmentation<M::Proxy>, SegmentError> {
     let target = validate(mesh, options)?;
-    let exec = match options.threads {
-        None => Exec::Global,
-        Some(n) => Exec::Local(
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(n)
-                .build()
-                .map_err(|e| SegmentError::InvalidOption {
-                    what: "threads",
-                    value: format!("{n} ({e})"),
-                })?,
-        ),
-    };
-    let mut lloyd = Lloyd {
-        mesh,
-        metric,
-        exec,
-        target,
-        max_iterations: options.max_iterations,
-        progress,
-        history: Vec::new(),
-        best: None,
-        iterations: 0,
-        candidates: vec![[(NONE, 0.0); 4]; mesh.face_count()],
-        per_vertex: false,
-        vertex_cache: Vec::new(),
-    };
-    if let Some(&[v, ..]) = mesh.faces().first() {
-        let probe = metric.fit(&[0], None).0;
-        if metric.vertex_error(v, &probe).is_some() {
-            lloyd.per_vertex = true;
-            lloyd.vertex_cache = vec![[(NONE, 0.0); 4]; mesh.vertex_count()];
-        }
+    Ok(Lloyd::new(mesh, metric, options, target, progress)?.run())
+}
+
+/// Rounds of the Lloyd loop after [`split`] has carved its new regions (one round, as after
+/// seeding, left the new regions ragged; three let them settle).
+pub const SPLIT_ROUNDS: usize = 3;
+
+/// Adds one region inside each of `hosts` (the host cut in two across its longest axis; see
+/// [`Lloyd::halve`]), then relaxes [`SPLIT_ROUNDS`] rounds of the loop,
+/// warm-started from `segmentation`, in which only the hosts' faces change region. The new regions are numbered after the existing ones,
+/// in the order of `hosts`. Hosts out of range, repeated or with fewer than two faces are
+/// refused.
+pub(super) fn split<M: ProxyMetric>(
+    mesh: &Mesh,
+    metric: &M,
+    options: &SegmentOptions,
+    segmentation: &Segmentation<M::Proxy>,
+    hosts: &[u32],
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Segmentation<M::Proxy>, SegmentError> {
+    let count = segmentation.region_count();
+    if segmentation.labels.len() != mesh.face_count()
+        || segmentation.region_errors.len() != count
+        || segmentation.labels.iter().any(|&r| r as usize >= count)
+    {
+        return Err(SegmentError::InvalidOption {
+            what: "segmentation",
+            value: "not a segmentation of this mesh".into(),
+        });
     }
-    if target.distance.is_some() && mesh.face_count() > 0 {
-        // The tolerance needs a distance: refuse metrics without one before any work.
-        let probe = metric.fit(&[0], None).0;
-        if metric.face_distance_squared(0, &probe).is_none() {
+    let mut sizes = vec![0usize; count];
+    for &r in &segmentation.labels {
+        sizes[r as usize] += 1;
+    }
+    let mut seen = HashSet::new();
+    for &h in hosts {
+        if sizes.get(h as usize).is_none_or(|&s| s < 2) || !seen.insert(h) {
             return Err(SegmentError::InvalidOption {
-                what: "regions",
-                value: "a tolerance, but this metric measures no distance".into(),
+                what: "split",
+                value: format!("region {h} (out of range, repeated or with fewer than 2 faces)"),
             });
         }
     }
-    Ok(lloyd.run())
+    let target = Target {
+        cap: count + hosts.len(),
+        distance: None,
+    };
+    let mut lloyd = Lloyd::new(mesh, metric, options, target, progress)?;
+    let mut state = State {
+        labels: segmentation.labels.clone(),
+        proxies: segmentation.proxies.clone(),
+        errors: segmentation.region_errors.clone(),
+        settled: vec![true; count],
+        total: segmentation.total_error,
+        meets: true,
+    };
+    for &h in hosts {
+        state = lloyd.halve(state, h);
+    }
+    // Only the hosts' faces move: the regions around them, which the caller may have
+    // checked already, keep their faces (and so their proxies).
+    lloyd.frozen = segmentation
+        .labels
+        .iter()
+        .map(|r| !seen.contains(r))
+        .collect();
+    // The cut itself is not a result: it can leave a host in pieces, which the rounds
+    // reconnect.
+    for _ in 0..SPLIT_ROUNDS {
+        state = lloyd.round(&state);
+        lloyd.iterations += 1;
+        lloyd.record(&state, lloyd.iterations);
+    }
+    Ok(lloyd.finish())
+}
+
+impl<'a, M: ProxyMetric> Lloyd<'a, M> {
+    fn new(
+        mesh: &'a Mesh,
+        metric: &'a M,
+        options: &SegmentOptions,
+        target: Target,
+        progress: &'a mut dyn FnMut(Progress),
+    ) -> Result<Self, SegmentError> {
+        let exec = match options.threads {
+            None => Exec::Global,
+            Some(n) => Exec::Local(
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(n)
+                    .build()
+                    .map_err(|e| SegmentError::InvalidOption {
+                        what: "threads",
+                        value: format!("{n} ({e})"),
+                    })?,
+            ),
+        };
+        let mut lloyd = Lloyd {
+            mesh,
+            metric,
+            exec,
+            target,
+            max_iterations: options.max_iterations,
+            progress,
+            history: Vec::new(),
+            best: None,
+            iterations: 0,
+            candidates: vec![[(NONE, 0.0); 4]; mesh.face_count()],
+            per_vertex: false,
+            vertex_cache: Vec::new(),
+            frozen: Vec::new(),
+        };
+        if let Some(&[v, ..]) = mesh.faces().first() {
+            let probe = metric.fit(&[0], None).0;
+            if metric.vertex_error(v, &probe).is_some() {
+                lloyd.per_vertex = true;
+                lloyd.vertex_cache = vec![[(NONE, 0.0); 4]; mesh.vertex_count()];
+            }
+        }
+        if target.distance.is_some() && mesh.face_count() > 0 {
+            // The tolerance needs a distance: refuse metrics without one before any work.
+            let probe = metric.fit(&[0], None).0;
+            if metric.face_distance_squared(0, &probe).is_none() {
+                return Err(SegmentError::InvalidOption {
+                    what: "regions",
+                    value: "a tolerance, but this metric measures no distance".into(),
+                });
+            }
+        }
+        Ok(lloyd)
+    }
 }
 
 /// Checks the options against the mesh; returns what the run aims for.
@@ -613,6 +703,14 @@ impl<M: ProxyMetric> Lloyd<'_, M> {
                 }
             }
         }
+        for ((l, &o), _) in labels
+            .iter_mut()
+            .zip(old)
+            .zip(&self.frozen)
+            .filter(|(_, &frozen)| frozen)
+        {
+            *l = o;
+        }
         let mut heap = BinaryHeap::with_capacity(old.len());
         self.grow(&mut heap, &mut labels, proxies);
         if CORE_SEEDS {
@@ -791,6 +889,78 @@ impl<M: ProxyMetric> Lloyd<'_, M> {
         if let Some(s) = state.settled.get_mut(host) {
             *s = false;
         }
+        state
+    }
+
+    /// Cuts region `host` in two across its longest principal axis (of its face centroids):
+    /// the faces beyond the median, reached from the farthest one, become a new region; both
+    /// are fitted from scratch. The Lloyd rounds that follow move the cut where the proxies
+    /// fit best and reconnect what the cut left in pieces.
+    fn halve(&mut self, mut state: State<M::Proxy>, host: u32) -> State<M::Proxy> {
+        let faces: Vec<u32> = (0..state.labels.len() as u32)
+            .filter(|&f| state.labels[f as usize] == host)
+            .collect();
+        if faces.len() < 2 {
+            return state;
+        }
+        let centroids: Vec<DVec3> = faces
+            .iter()
+            .map(|&f| self.mesh.face_centroid(f as usize))
+            .collect();
+        let mean = centroids.iter().copied().sum::<DVec3>() / centroids.len() as f64;
+        let mut cov = glam::DMat3::ZERO;
+        for &c in &centroids {
+            let d = c - mean;
+            cov += glam::DMat3::from_cols(d * d.x, d * d.y, d * d.z);
+        }
+        // Power iteration from the diagonal's largest axis: deterministic.
+        let mut axis = [DVec3::X, DVec3::Y, DVec3::Z]
+            .into_iter()
+            .max_by(|a, b| (cov * *a).length().total_cmp(&(cov * *b).length()))
+            .unwrap_or(DVec3::X);
+        for _ in 0..64 {
+            match (cov * axis).try_normalize() {
+                Some(next) => axis = next,
+                None => break,
+            }
+        }
+        let along: Vec<f64> = centroids.iter().map(|&c| (c - mean).dot(axis)).collect();
+        let mut sorted = along.clone();
+        sorted.sort_by(f64::total_cmp);
+        let median = sorted[sorted.len() / 2];
+        let Some(seed) = (0..faces.len())
+            .max_by(|&a, &b| along[a].total_cmp(&along[b]).then(b.cmp(&a)))
+            .map(|k| faces[k])
+        else {
+            return state;
+        };
+        let beyond: HashSet<u32> = faces
+            .iter()
+            .zip(&along)
+            .filter(|(_, &t)| t >= median)
+            .map(|(&f, _)| f)
+            .collect();
+        let patch = self.grow_patch(&state.labels, seed, faces.len() - 1, |f| {
+            beyond.contains(&f)
+        });
+        let slot = state.proxies.len() as u32;
+        for &f in &patch {
+            state.labels[f as usize] = slot;
+        }
+        let rest: Vec<u32> = faces
+            .iter()
+            .copied()
+            .filter(|&f| state.labels[f as usize] == host)
+            .collect();
+        let (proxy, error) = self.metric.fit(&patch, None);
+        state.proxies.push(proxy);
+        state.errors.push(error);
+        state.settled.push(false);
+        let (proxy, error) = self.metric.fit(&rest, None);
+        state.proxies[host as usize] = proxy;
+        state.errors[host as usize] = error;
+        state.settled[host as usize] = false;
+        state.total = state.errors.iter().sum::<f64>().min(f64::MAX);
         state
     }
 

@@ -205,3 +205,20 @@ pub fn segment_with<M: ProxyMetric>(
 ) -> Result<Segmentation<M::Proxy>, SegmentError> {
     lloyd::run(mesh, metric, options, progress)
 }
+
+/// Splits regions of a segmentation: each of `hosts` is cut in two across the longest axis
+/// of its faces, then three Lloyd rounds, warm-started from `segmentation`, settle the cuts;
+/// only the hosts' faces change region, so the other regions keep their faces and
+/// ellipsoids. The encoder uses it for regions whose boundary
+/// its decoder cannot map to a chart (see [`crate::encode::encode_mesh`]). New regions are
+/// numbered after the existing ones.
+pub fn split_regions<M: ProxyMetric>(
+    mesh: &Mesh,
+    metric: &M,
+    options: &SegmentOptions,
+    segmentation: &Segmentation<M::Proxy>,
+    hosts: &[u32],
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Segmentation<M::Proxy>, SegmentError> {
+    lloyd::split(mesh, metric, options, segmentation, hosts, progress)
+}
