@@ -194,6 +194,10 @@ fn encode_writes_an_ellip_file_that_info_reads() {
     assert_eq!(report["bytes"].as_u64(), Some(bytes.len() as u64));
     assert_eq!(report["regions"], 4);
     assert!(report["ratio_to_raw"].as_f64().unwrap() > 10.0);
+    // The encoder decoded its file: clean, no region split.
+    assert_eq!(report["requested_regions"], 4);
+    assert_eq!(report["split_rounds"], 0);
+    assert_eq!(report["decode_check"], "clean");
 
     let info = ellip(&["info", out.to_str().unwrap(), "--json"]);
     assert!(
@@ -211,6 +215,22 @@ fn encode_writes_an_ellip_file_that_info_reads() {
     let piped = ellip(&["encode", &fixture("blob2.obj"), "-k", "4", "-o", "-", "-q"]);
     assert!(piped.status.success());
     assert_eq!(piped.stdout, bytes);
+    // Without the check: the same file here, and the report says it was not checked.
+    let unchecked = dir.join("unchecked.ellip");
+    let run = ellip(&[
+        "encode",
+        &fixture("blob2.obj"),
+        "-k",
+        "4",
+        "-o",
+        unchecked.to_str().unwrap(),
+        "--no-verify",
+        "--json",
+    ]);
+    assert!(run.status.success());
+    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(report["decode_check"], "not checked");
+    assert_eq!(std::fs::read(&unchecked).unwrap(), bytes);
 
     // A damaged file is one clean error line.
     let mut damaged = bytes.clone();
