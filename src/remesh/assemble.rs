@@ -882,8 +882,29 @@ fn triangulate_adaptive(
         .filter_map(|(i, t)| t.worst_error().map(|error| Worst { error, piece: i }))
         .collect();
     let mut total = boundary_vertices;
+    let mut min_spacing = spacing / 4.0;
+    let mut relaxations = 0;
     while total < budget {
-        let Some(worst) = heap.pop() else { break };
+        let Some(worst) = heap.pop() else {
+            // Every piece is as fine as the spacing allows but the budget is not spent: the
+            // area estimate (hence the spacing) was too large, as for nearly flat regions
+            // whose radii run into the thousands. Refinement goes on at a quarter of the
+            // spacing, a few times.
+            if relaxations >= MAX_SPACING_RELAXATIONS || tolerance.is_some() {
+                break;
+            }
+            relaxations += 1;
+            min_spacing /= 4.0;
+            for t in &mut tris {
+                t.set_min_spacing(min_spacing);
+            }
+            heap = tris
+                .iter()
+                .enumerate()
+                .filter_map(|(i, t)| t.worst_error().map(|error| Worst { error, piece: i }))
+                .collect();
+            continue;
+        };
         if tolerance.is_some_and(|t| worst.error <= t) {
             break;
         }
@@ -905,6 +926,9 @@ fn triangulate_adaptive(
         .map(AdaptiveTriangulation::finish)
         .collect())
 }
+
+/// Most times [`triangulate_adaptive`] lowers the minimum spacing to spend its budget.
+const MAX_SPACING_RELAXATIONS: usize = 3;
 
 /// A heap entry: the worst error of a piece; ties go to the lower piece index.
 #[derive(Debug, Clone, Copy)]

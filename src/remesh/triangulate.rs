@@ -531,6 +531,26 @@ impl AdaptiveTriangulation {
         false
     }
 
+    /// Sets the minimum spacing (see [`AdaptiveTriangulation::new`]) and makes every inside
+    /// face a candidate again under it: lowered, it lets refinement go on where the budget
+    /// was not spent (a region whose estimated area was too large for its real size).
+    pub fn set_min_spacing(&mut self, min_spacing: f64) {
+        if !(min_spacing >= 0.0 && min_spacing.is_finite()) {
+            return;
+        }
+        self.min_spacing = min_spacing;
+        self.heap.clear();
+        let faces: Vec<FixedFaceHandle<InnerTag>> = self
+            .inner
+            .cdt
+            .fixed_inner_faces()
+            .filter(|&f| *self.inner.cdt.face(f).data())
+            .collect();
+        for face in faces {
+            self.push_face(face);
+        }
+    }
+
     /// Interior vertices inserted so far.
     pub fn added(&self) -> usize {
         self.inner.interior.len()
