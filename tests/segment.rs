@@ -6,8 +6,8 @@
 use ellip::ellipsoid::{Ellipsoid, Sign};
 use ellip::import::{read_mesh, ImportOptions};
 use ellip::segment::{
-    segment, segment_with, split_regions, EllipsoidMetric, Mode, Progress, ProxyMetric,
-    RegionCount, SegmentError, SegmentOptions, Segmentation, WeightOverrides,
+    segment, segment_with, split_regions, Cut, EllipsoidMetric, Mode, Progress, ProxyMetric,
+    RegionCount, SegmentError, SegmentOptions, Segmentation, Split, WeightOverrides,
 };
 use ellip::synth::blob::distance_to_ellipsoid;
 use ellip::synth::EllipsoidSpec;
@@ -540,7 +540,16 @@ fn splitting_a_region_cuts_only_its_faces() {
     let metric = EllipsoidMetric::new(&mesh, &options).unwrap();
     let before = segment_with(&mesh, &metric, &options, &mut |_| {}).unwrap();
     let host = 0u32;
-    let after = split_regions(&mesh, &metric, &options, &before, &[host], &mut |_| {}).unwrap();
+    let whole = |region| Split { region, cut: None };
+    let after = split_regions(
+        &mesh,
+        &metric,
+        &options,
+        &before,
+        &[whole(host)],
+        &mut |_| {},
+    )
+    .unwrap();
     assert_eq!(after.region_count(), before.region_count() + 1);
     check_partition(&mesh, &after);
     // Faces outside the host keep their region; the new region lies inside the host.
@@ -563,8 +572,48 @@ fn splitting_a_region_cuts_only_its_faces() {
     };
     assert!(error_of(&after, &[host, new]) <= 1.05 * error_of(&before, &[host]));
     // Deterministic.
-    let again = split_regions(&mesh, &metric, &options, &before, &[host], &mut |_| {}).unwrap();
+    let again = split_regions(
+        &mesh,
+        &metric,
+        &options,
+        &before,
+        &[whole(host)],
+        &mut |_| {},
+    )
+    .unwrap();
     assert_eq!(after.labels, again.labels);
+    // Along a given plane: the new region starts on the plane's positive side.
+    let faces: Vec<usize> = (0..mesh.face_count())
+        .filter(|&f| before.labels[f] == host)
+        .collect();
+    let centre = faces.iter().map(|&f| mesh.face_centroid(f)).sum::<DVec3>() / faces.len() as f64;
+    let cut = Cut {
+        point: centre,
+        normal: DVec3::Z,
+    };
+    let planed = split_regions(
+        &mesh,
+        &metric,
+        &options,
+        &before,
+        &[Split {
+            region: host,
+            cut: Some(cut),
+        }],
+        &mut |_| {},
+    )
+    .unwrap();
+    check_partition(&mesh, &planed);
+    let new_z: Vec<f64> = (0..mesh.face_count())
+        .filter(|&f| planed.labels[f] == new)
+        .map(|f| mesh.face_centroid(f).z - centre.z)
+        .collect();
+    let above = new_z.iter().filter(|&&z| z > 0.0).count();
+    assert!(
+        above * 10 >= new_z.len() * 7,
+        "{above} of the new region's {} faces above the cut",
+        new_z.len()
+    );
 }
 
 #[test]
@@ -574,8 +623,12 @@ fn splitting_refuses_bad_hosts() {
     let metric = EllipsoidMetric::new(&mesh, &options).unwrap();
     let s = segment_with(&mesh, &metric, &options, &mut |_| {}).unwrap();
     for hosts in [&[3u32][..], &[0, 0], &[u32::MAX]] {
+        let hosts: Vec<Split> = hosts
+            .iter()
+            .map(|&region| Split { region, cut: None })
+            .collect();
         assert!(matches!(
-            split_regions(&mesh, &metric, &options, &s, hosts, &mut |_| {}),
+            split_regions(&mesh, &metric, &options, &s, &hosts, &mut |_| {}),
             Err(SegmentError::InvalidOption { .. })
         ));
     }

@@ -26,7 +26,8 @@
 use super::chart::{Projection, RegionChart};
 use super::refine::{refine_arcs, RefineSettings};
 use super::triangulate::{
-    triangulate_parametric, AdaptiveTriangulation, Corner, RegionInput, RegionMesh,
+    boundary_crossing, triangulate_parametric, AdaptiveTriangulation, Corner, Crossing,
+    RegionInput, RegionMesh,
 };
 use super::{RemeshError, RemeshOptions, Remeshed, Scheme};
 use crate::ellipsoid::Ellipsoid;
@@ -129,13 +130,24 @@ fn prepare(rep: &Representation, options: &RemeshOptions) -> Result<Prepared, Re
     })
 }
 
+/// A region whose chart or boundary triangulation fails ([`region_faults`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RegionFault {
+    /// The region.
+    pub region: u32,
+    /// When its loops cross in its chart: two loop edges that cross (their end points in
+    /// space), where the boundary folds over itself.
+    pub crossing: Option<Crossing>,
+}
+
 /// The regions whose chart or boundary triangulation fails in the decoder's first attempt
 /// (refined, untangled arcs reaching the ellipsoids at their closest points), all of them
-/// rather than the first: what [`assemble`] would have to fall back from. Increasing order.
+/// rather than the first: what [`assemble`] would have to fall back from. In increasing
+/// order of region, one fault per region.
 pub fn region_faults(
     rep: &Representation,
     options: &RemeshOptions,
-) -> Result<Vec<u32>, RemeshError> {
+) -> Result<Vec<RegionFault>, RemeshError> {
     let Prepared {
         budget,
         spacing,
@@ -154,8 +166,9 @@ pub fn region_faults(
     };
     let mut faults = Vec::new();
     plan.pieces(&settings, true, Some(&mut faults))?;
-    faults.sort_unstable();
-    faults.dedup();
+    // Stable: a whole ellipsoid's two halves keep their order.
+    faults.sort_by_key(|f| f.region);
+    faults.dedup_by_key(|f| f.region);
     Ok(faults)
 }
 
@@ -291,7 +304,7 @@ impl Plan<'_> {
         &self,
         settings: &RefineSettings,
         untangle_arcs: bool,
-        mut faults: Option<&mut Vec<u32>>,
+        mut faults: Option<&mut Vec<RegionFault>>,
     ) -> Result<(Vec<DVec3>, Vec<Piece>), RemeshError> {
         let Plan {
             rep,
@@ -367,10 +380,12 @@ impl Plan<'_> {
             ) {
                 Ok(chart) => chart,
                 Err(RemeshError::Region { region, .. }) if faults.is_some() => {
-                    faults
-                        .as_deref_mut()
-                        .into_iter()
-                        .for_each(|f| f.push(region));
+                    if let Some(f) = faults.as_deref_mut() {
+                        f.push(RegionFault {
+                            region,
+                            crossing: None,
+                        });
+                    }
                     continue;
                 }
                 Err(e) => return Err(e),
@@ -747,7 +762,7 @@ fn settle_charts(
     rep: &Representation,
     pieces: &mut [Piece],
     min_spacing: f64,
-    mut faults: Option<&mut Vec<u32>>,
+    mut faults: Option<&mut Vec<RegionFault>>,
 ) -> Result<(), RemeshError> {
     for piece in pieces.iter_mut() {
         let Err(error) = AdaptiveTriangulation::new(&piece.input(), min_spacing) else {
@@ -762,7 +777,10 @@ fn settle_charts(
                 *piece = other;
             }
             _ => match faults.as_deref_mut() {
-                Some(f) => f.push(piece.region),
+                Some(f) => f.push(RegionFault {
+                    region: piece.region,
+                    crossing: boundary_crossing(&piece.input()),
+                }),
                 None => return Err(error),
             },
         }

@@ -95,6 +95,39 @@ impl HasPosition for Vertex {
 /// The face data says whether the face lies inside the region.
 type Cdt = ConstrainedDelaunayTriangulation<Vertex, (), (), bool>;
 
+/// Two loop edges that cross in a region's chart: their end points, in space.
+pub type Crossing = [[DVec3; 2]; 2];
+
+/// Why a boundary-only triangulation failed.
+enum Failure {
+    Error(RemeshError),
+    /// Two loop edges cross (the edges, when spade names the one in the way).
+    Crossing(RemeshError, Option<Box<Crossing>>),
+}
+
+impl Failure {
+    fn into_error(self) -> RemeshError {
+        match self {
+            Failure::Error(e) | Failure::Crossing(e, _) => e,
+        }
+    }
+}
+
+impl From<RemeshError> for Failure {
+    fn from(e: RemeshError) -> Self {
+        Failure::Error(e)
+    }
+}
+
+/// When a region's loops cross in its chart (the boundary-only triangulation fails with
+/// "boundary loops cross"): the first two loop edges found crossing.
+pub fn boundary_crossing(input: &RegionInput) -> Option<Crossing> {
+    match RegionCdt::build(input) {
+        Err(Failure::Crossing(_, c)) => c.map(|c| *c),
+        _ => None,
+    }
+}
+
 fn region_error(region: u32, what: &'static str) -> RemeshError {
     RemeshError::Region { region, what }
 }
@@ -128,8 +161,13 @@ impl RegionCdt {
     /// constraint, the faces inside the region found by a flood fill from the outer face that
     /// toggles inside/outside across constraint edges.
     fn new(input: &RegionInput) -> Result<RegionCdt, RemeshError> {
+        Self::build(input).map_err(Failure::into_error)
+    }
+
+    /// [`RegionCdt::new`], telling which loop edges cross when that is what failed.
+    fn build(input: &RegionInput) -> Result<RegionCdt, Failure> {
         let region = input.region;
-        let err = |what| region_error(region, what);
+        let err = |what| Failure::Error(region_error(region, what));
         let loops = clean_loops(input)?;
         let chart = input.chart.clone();
         if !chart.ellipsoid.is_valid() {
@@ -205,7 +243,15 @@ impl RegionCdt {
                     return Err(err("a boundary edge is used twice"));
                 }
                 if !cdt.can_add_constraint(ha, hb) {
-                    return Err(err("boundary loops cross"));
+                    let other = cdt
+                        .get_conflicting_edges_between_vertices(ha, hb)
+                        .next()
+                        .map(|e| [e.from().data().point, e.to().data().point]);
+                    let this = [cdt.vertex(ha).data().point, cdt.vertex(hb).data().point];
+                    return Err(Failure::Crossing(
+                        region_error(region, "boundary loops cross"),
+                        other.map(|o| Box::new([this, o])),
+                    ));
                 }
                 cdt.try_add_constraint(ha, hb);
                 if !cdt.exists_constraint(ha, hb) {

@@ -59,7 +59,9 @@
 //! reduction runs serially in index order, so the result does not depend on the number of
 //! threads.
 
-use super::{Progress, ProxyMetric, RegionCount, SegmentError, SegmentOptions, Segmentation};
+use super::{
+    Cut, Progress, ProxyMetric, RegionCount, SegmentError, SegmentOptions, Segmentation, Split,
+};
 use crate::mesh::Mesh;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -205,7 +207,7 @@ pub(super) fn split<M: ProxyMetric>(
     metric: &M,
     options: &SegmentOptions,
     segmentation: &Segmentation<M::Proxy>,
-    hosts: &[u32],
+    hosts: &[Split],
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Segmentation<M::Proxy>, SegmentError> {
     let count = segmentation.region_count();
@@ -223,7 +225,7 @@ pub(super) fn split<M: ProxyMetric>(
         sizes[r as usize] += 1;
     }
     let mut seen = HashSet::new();
-    for &h in hosts {
+    for h in hosts.iter().map(|s| s.region) {
         if sizes.get(h as usize).is_none_or(|&s| s < 2) || !seen.insert(h) {
             return Err(SegmentError::InvalidOption {
                 what: "split",
@@ -244,8 +246,8 @@ pub(super) fn split<M: ProxyMetric>(
         total: segmentation.total_error,
         meets: true,
     };
-    for &h in hosts {
-        state = lloyd.halve(state, h);
+    for h in hosts {
+        state = lloyd.halve(state, h.region, h.cut);
     }
     // Only the hosts' faces move: the regions around them, which the caller may have
     // checked already, keep their faces (and so their proxies).
@@ -892,11 +894,17 @@ impl<M: ProxyMetric> Lloyd<'_, M> {
         state
     }
 
-    /// Cuts region `host` in two across its longest principal axis (of its face centroids):
-    /// the faces beyond the median, reached from the farthest one, become a new region; both
+    /// Cuts region `host` in two along `cut` (when the plane leaves faces on both sides),
+    /// else across its longest principal axis (of its face centroids) at the median: the
+    /// faces on the positive side, reached from the farthest one, become a new region; both
     /// are fitted from scratch. The Lloyd rounds that follow move the cut where the proxies
     /// fit best and reconnect what the cut left in pieces.
-    fn halve(&mut self, mut state: State<M::Proxy>, host: u32) -> State<M::Proxy> {
+    fn halve(
+        &mut self,
+        mut state: State<M::Proxy>,
+        host: u32,
+        cut: Option<Cut>,
+    ) -> State<M::Proxy> {
         let faces: Vec<u32> = (0..state.labels.len() as u32)
             .filter(|&f| state.labels[f as usize] == host)
             .collect();
@@ -924,10 +932,30 @@ impl<M: ProxyMetric> Lloyd<'_, M> {
                 None => break,
             }
         }
-        let along: Vec<f64> = centroids.iter().map(|&c| (c - mean).dot(axis)).collect();
-        let mut sorted = along.clone();
-        sorted.sort_by(f64::total_cmp);
-        let median = sorted[sorted.len() / 2];
+        let median_cut = |axis: DVec3| -> (Vec<f64>, f64) {
+            let along: Vec<f64> = centroids.iter().map(|&c| (c - mean).dot(axis)).collect();
+            let mut sorted = along.clone();
+            sorted.sort_by(f64::total_cmp);
+            let median = sorted[sorted.len() / 2];
+            (along, median)
+        };
+        // The given plane, if it leaves faces on both sides; else the median across the
+        // longest axis.
+        let (along, median) = match cut {
+            Some(c) if c.normal.is_finite() && c.point.is_finite() => {
+                let along: Vec<f64> = centroids
+                    .iter()
+                    .map(|&p| (p - c.point).dot(c.normal))
+                    .collect();
+                let beyond = along.iter().filter(|&&t| t >= 0.0).count();
+                if beyond > 0 && beyond < along.len() {
+                    (along, 0.0)
+                } else {
+                    median_cut(axis)
+                }
+            }
+            _ => median_cut(axis),
+        };
         let Some(seed) = (0..faces.len())
             .max_by(|&a, &b| along[a].total_cmp(&along[b]).then(b.cmp(&a)))
             .map(|k| faces[k])

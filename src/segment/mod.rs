@@ -206,10 +206,28 @@ pub fn segment_with<M: ProxyMetric>(
     lloyd::run(mesh, metric, options, progress)
 }
 
-/// Splits regions of a segmentation: each of `hosts` is cut in two across the longest axis
-/// of its faces, then three Lloyd rounds, warm-started from `segmentation`, settle the cuts;
-/// only the hosts' faces change region, so the other regions keep their faces and
-/// ellipsoids. The encoder uses it for regions whose boundary
+/// Where to cut a region in two: the plane through `point` with unit `normal`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Cut {
+    /// A point of the plane.
+    pub point: glam::DVec3,
+    /// Its unit normal.
+    pub normal: glam::DVec3,
+}
+
+/// A region to split ([`split_regions`]), and where, if known.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Split {
+    /// The region.
+    pub region: u32,
+    /// The plane to cut it along; `None`: across the longest axis of its faces, at the median.
+    pub cut: Option<Cut>,
+}
+
+/// Splits regions of a segmentation: each host is cut in two (along its [`Split::cut`], or
+/// across the longest axis of its faces), then three Lloyd rounds, warm-started from
+/// `segmentation`, settle the cuts; only the hosts' faces change region, so the other regions
+/// keep their faces and ellipsoids. The encoder uses it for regions whose boundary
 /// its decoder cannot map to a chart (see [`crate::encode::encode_mesh`]). New regions are
 /// numbered after the existing ones.
 pub fn split_regions<M: ProxyMetric>(
@@ -217,7 +235,7 @@ pub fn split_regions<M: ProxyMetric>(
     metric: &M,
     options: &SegmentOptions,
     segmentation: &Segmentation<M::Proxy>,
-    hosts: &[u32],
+    hosts: &[Split],
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Segmentation<M::Proxy>, SegmentError> {
     lloyd::split(mesh, metric, options, segmentation, hosts, progress)
