@@ -4,7 +4,9 @@
 //! with their ellipsoids → [`extract_boundaries`] → [`smooth_boundaries`] toward the
 //! ellipsoids (Simari & Singh 2005, section 4.1) → [`Representation::from_boundary`] →
 //! [`Representation::simplify_arcs`] (Douglas–Peucker, the paper's future-work note) →
-//! [`format::encode`] (quantised, compressed, checksummed; `spec/ELLIP.md`).
+//! [`format::encode`] (quantised, compressed, checksummed; `spec/ELLIP.md`) → the decoder
+//! check: the file is remeshed as a reader would, and regions that do not mesh cleanly are
+//! split ([`split_regions`]) and the file written again ([`EncodeSettings::verify`]).
 
 use crate::boundary::{extract_boundaries, smooth_boundaries, BoundaryError, SmoothOptions};
 use crate::ellipsoid::Ellipsoid;
