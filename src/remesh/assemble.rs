@@ -88,6 +88,22 @@ struct Prepared {
     settings: RefineSettings,
 }
 
+impl Prepared {
+    /// The first attempt's plan: boundary points reach the ellipsoids at their closest
+    /// points.
+    fn plan<'a>(&'a self, rep: &'a Representation, options: &'a RemeshOptions) -> Plan<'a> {
+        Plan {
+            rep,
+            options,
+            budget: self.budget,
+            spacing: self.spacing,
+            tolerance: self.tolerance,
+            areas: &self.areas,
+            projection: Projection::Closest,
+        }
+    }
+}
+
 fn prepare(rep: &Representation, options: &RemeshOptions) -> Result<Prepared, RemeshError> {
     rep.validate()?;
     options.validate()?;
@@ -148,24 +164,11 @@ pub fn region_faults(
     rep: &Representation,
     options: &RemeshOptions,
 ) -> Result<Vec<RegionFault>, RemeshError> {
-    let Prepared {
-        budget,
-        spacing,
-        tolerance,
-        areas,
-        settings,
-    } = prepare(rep, options)?;
-    let plan = Plan {
-        rep,
-        options,
-        budget,
-        spacing,
-        tolerance,
-        areas: &areas,
-        projection: Projection::Closest,
-    };
+    let prepared = prepare(rep, options)?;
     let mut faults = Vec::new();
-    plan.pieces(&settings, true, Some(&mut faults))?;
+    prepared
+        .plan(rep, options)
+        .pieces(&prepared.settings, true, Some(&mut faults))?;
     // Stable: a whole ellipsoid's two halves keep their order.
     faults.sort_by_key(|f| f.region);
     faults.dedup_by_key(|f| f.region);
@@ -174,22 +177,9 @@ pub fn region_faults(
 
 /// Remeshes every region and joins them (see [`super::remesh`] and the module doc).
 pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshed, RemeshError> {
-    let Prepared {
-        budget,
-        spacing,
-        tolerance,
-        areas,
-        settings,
-    } = prepare(rep, options)?;
-    let mut plan = Plan {
-        rep,
-        options,
-        budget,
-        spacing,
-        tolerance,
-        areas: &areas,
-        projection: Projection::Closest,
-    };
+    let prepared = prepare(rep, options)?;
+    let settings = prepared.settings;
+    let mut plan = prepared.plan(rep, options);
     // Attempts, in order: refined and pruned arcs; the stored arcs, pruned (refined points
     // off the stored polyline can make loops cross where arcs meet at sharp angles or where
     // the fitted ellipsoids meet far from the stored boundary); the stored arcs as they are
@@ -894,11 +884,13 @@ fn triangulate_adaptive(
         .iter()
         .map(|input| AdaptiveTriangulation::new(input, spacing / 4.0))
         .collect::<Result<Vec<_>, _>>()?;
-    let mut heap: BinaryHeap<Worst> = tris
-        .iter()
-        .enumerate()
-        .filter_map(|(i, t)| t.worst_error().map(|error| Worst { error, piece: i }))
-        .collect();
+    let worst_of = |tris: &[AdaptiveTriangulation]| -> BinaryHeap<Worst> {
+        tris.iter()
+            .enumerate()
+            .filter_map(|(i, t)| t.worst_error().map(|error| Worst { error, piece: i }))
+            .collect()
+    };
+    let mut heap = worst_of(&tris);
     let mut total = boundary_vertices;
     let mut min_spacing = spacing / 4.0;
     let mut relaxations = 0;
@@ -916,11 +908,7 @@ fn triangulate_adaptive(
             for t in &mut tris {
                 t.set_min_spacing(min_spacing);
             }
-            heap = tris
-                .iter()
-                .enumerate()
-                .filter_map(|(i, t)| t.worst_error().map(|error| Worst { error, piece: i }))
-                .collect();
+            heap = worst_of(&tris);
             continue;
         };
         if tolerance.is_some_and(|t| worst.error <= t) {
@@ -1180,20 +1168,12 @@ fn vertex_normals(
 /// Counts degenerate and flipped triangles and reads closedness and orientation off the
 /// topology.
 pub fn check_mesh(rep: &Representation, mesh: &Mesh, face_regions: &[u32]) -> MeshCheck {
-    let diagonal = mesh.bounding_box().map_or(0.0, |b| b.diagonal());
-    let min_area = DEGENERATE_AREA * diagonal * diagonal;
     let mut degenerate = 0;
     let mut flipped = 0;
-    for (f, &r) in face_regions.iter().enumerate().take(mesh.face_count()) {
-        let area = mesh.face_area(f);
-        if area.is_nan() || area <= min_area {
-            degenerate += 1;
-            continue;
-        }
-        if let Some(e) = rep.ellipsoids.get(r as usize) {
-            if mesh.face_normal(f).dot(e.normal(mesh.face_centroid(f))) < 0.0 {
-                flipped += 1;
-            }
+    for fault in face_faults(rep, mesh, face_regions).map(|(_, fault)| fault) {
+        match fault {
+            FaceFault::Degenerate => degenerate += 1,
+            FaceFault::Flipped => flipped += 1,
         }
     }
     let t = mesh.topology();
@@ -1327,48 +1307,65 @@ fn region_area(e: &Ellipsoid, loops: &[Vec<DVec3>]) -> f64 {
     sphere_area * scale
 }
 
-/// The regions to blame for what [`check_mesh`] found wrong with a remeshed representation,
-/// in increasing order: the regions of degenerate and flipped triangles, and of the
-/// triangles on edges used by more than two triangles (or by one, when the representation
-/// has no border arcs, or by two running it the same way). Empty when the mesh is clean, or when its faults (a vertex with two
-/// fans of triangles) name no edge.
-pub fn problem_regions(rep: &Representation, out: &Remeshed) -> Vec<u32> {
-    let mesh = &out.mesh;
-    let mut blamed = std::collections::BTreeSet::new();
+/// What is wrong with a triangle of an assembled mesh ([`face_faults`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum FaceFault {
+    /// Area (near) zero ([`DEGENERATE_AREA`]).
+    Degenerate,
+    /// Its normal disagrees with its ellipsoid's signed normal at its centroid.
+    Flipped,
+}
+
+/// The faulty triangles of an assembled mesh, with their regions: what [`check_mesh`]
+/// counts and [`problem_regions`] blames.
+fn face_faults<'a>(
+    rep: &'a Representation,
+    mesh: &'a Mesh,
+    face_regions: &'a [u32],
+) -> impl Iterator<Item = (u32, FaceFault)> + 'a {
     let diagonal = mesh.bounding_box().map_or(0.0, |b| b.diagonal());
     let min_area = DEGENERATE_AREA * diagonal * diagonal;
-    for (f, &r) in out.face_regions.iter().enumerate().take(mesh.face_count()) {
-        let area = mesh.face_area(f);
-        let bad = area.is_nan()
-            || area <= min_area
-            || rep
-                .ellipsoids
-                .get(r as usize)
-                .is_some_and(|e| mesh.face_normal(f).dot(e.normal(mesh.face_centroid(f))) < 0.0);
-        if bad {
-            blamed.insert(r);
-        }
-    }
+    face_regions
+        .iter()
+        .enumerate()
+        .take(mesh.face_count())
+        .filter_map(move |(f, &r)| {
+            let area = mesh.face_area(f);
+            if area.is_nan() || area <= min_area {
+                return Some((r, FaceFault::Degenerate));
+            }
+            let e = rep.ellipsoids.get(r as usize)?;
+            (mesh.face_normal(f).dot(e.normal(mesh.face_centroid(f))) < 0.0)
+                .then_some((r, FaceFault::Flipped))
+        })
+}
+
+/// The regions to blame for what [`check_mesh`] found wrong with a remeshed representation,
+/// in increasing order: the regions of degenerate and flipped triangles, and of the
+/// triangles on edges that are not manifold, on the border (when the representation has no
+/// border arcs), or run the same way by their two triangles. Empty when the mesh is clean,
+/// or when its faults (a vertex with two fans of triangles) name no edge.
+pub fn problem_regions(rep: &Representation, out: &Remeshed) -> Vec<u32> {
+    let mesh = &out.mesh;
+    let mut blamed: std::collections::BTreeSet<u32> = face_faults(rep, mesh, &out.face_regions)
+        .map(|(r, _)| r)
+        .collect();
     let c = out.check;
     if !(c.manifold && c.consistently_oriented && (c.closed || c.has_border_arcs)) {
-        // Per undirected edge, its faces and whether each runs it from the lower vertex.
-        let mut uses: HashMap<(u32, u32), Vec<(u32, bool)>> = HashMap::new();
-        for (f, tri) in mesh.faces().iter().enumerate() {
-            for k in 0..3 {
-                let (a, b) = (tri[k], tri[(k + 1) % 3]);
-                uses.entry((a.min(b), a.max(b)))
-                    .or_default()
-                    .push((f as u32, a < b));
-            }
-        }
-        for faces in uses.values() {
-            let same_way = faces.len() == 2 && faces[0].1 == faces[1].1;
-            if faces.len() > 2 || (faces.len() == 1 && !c.has_border_arcs) || same_way {
-                for &(f, _) in faces {
-                    if let Some(&r) = out.face_regions.get(f as usize) {
-                        blamed.insert(r);
-                    }
-                }
+        let t = mesh.topology();
+        let faces = mesh.faces();
+        for (f, (tri, &r)) in faces.iter().zip(&out.face_regions).enumerate() {
+            let bad = (0..3).any(|i| match t.neighbor(f, i) {
+                // A manifold edge a→b is run b→a by a consistently oriented neighbour.
+                Some(g) => faces.get(g as usize).is_some_and(|other| {
+                    let (a, b) = (tri[i], tri[(i + 1) % 3]);
+                    (0..3).any(|k| other[k] == a && other[(k + 1) % 3] == b)
+                }),
+                // A border edge, or an edge of three or more triangles.
+                None => !t.is_border_edge(f, i) || !c.has_border_arcs,
+            });
+            if bad {
+                blamed.insert(r);
             }
         }
     }

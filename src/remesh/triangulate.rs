@@ -522,21 +522,12 @@ impl AdaptiveTriangulation {
                 value: min_spacing.to_string(),
             });
         }
-        let inner = RegionCdt::new(input)?;
         let mut this = AdaptiveTriangulation {
-            inner,
+            inner: RegionCdt::new(input)?,
             heap: BinaryHeap::new(),
             min_spacing,
         };
-        let faces: Vec<FixedFaceHandle<InnerTag>> = this
-            .inner
-            .cdt
-            .fixed_inner_faces()
-            .filter(|&f| *this.inner.cdt.face(f).data())
-            .collect();
-        for face in faces {
-            this.push_face(face);
-        }
+        this.push_inside_faces();
         Ok(this)
     }
 
@@ -586,6 +577,11 @@ impl AdaptiveTriangulation {
         }
         self.min_spacing = min_spacing;
         self.heap.clear();
+        self.push_inside_faces();
+    }
+
+    /// Makes every inside face a candidate ([`Self::push_face`]).
+    fn push_inside_faces(&mut self) {
         let faces: Vec<FixedFaceHandle<InnerTag>> = self
             .inner
             .cdt
