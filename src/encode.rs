@@ -175,11 +175,11 @@ pub fn encode_mesh(
             best = Some((score, candidate));
         }
         // Hosts that can be split (at least two faces), within the budget.
-        let sizes = region_sizes(&segmentation);
+        let faces = segmentation.faces_by_region();
         let room = (requested + max_added).saturating_sub(segmentation.region_count());
         let hosts: Vec<Split> = blamed
             .into_iter()
-            .filter(|s| sizes.get(s.region as usize).is_some_and(|&n| n >= 2))
+            .filter(|s| faces.get(s.region as usize).is_some_and(|f| f.len() >= 2))
             .take(room)
             .collect();
         if done || hosts.is_empty() || verification.rounds >= MAX_SPLIT_ROUNDS {
@@ -195,17 +195,9 @@ pub fn encode_mesh(
         )?;
         verification.rounds += 1;
     }
-    match best {
-        Some((_, encoded)) => Ok(encoded),
-        None => unreachable_encoding(),
-    }
-}
-
-/// Never reached: the loop of [`encode_mesh`] keeps at least one encoding.
-fn unreachable_encoding() -> Result<Encoded, EncodeMeshError> {
-    Err(EncodeMeshError::Unreachable(
-        "internal error: no encoding was kept".into(),
-    ))
+    // The loop keeps an encoding before it can break.
+    best.map(|(_, encoded)| encoded)
+        .ok_or_else(|| EncodeMeshError::Unreachable("internal error: no encoding was kept".into()))
 }
 
 /// Most rounds of region splitting [`encode_mesh`] runs to make its file decode clean.
@@ -302,17 +294,6 @@ fn cut_between(crossing: [[DVec3; 2]; 2]) -> Option<Cut> {
         point: (p + q) / 2.0,
         normal,
     })
-}
-
-/// Faces per region.
-fn region_sizes(segmentation: &Segmentation<Ellipsoid>) -> Vec<usize> {
-    let mut sizes = vec![0usize; segmentation.region_count()];
-    for &r in &segmentation.labels {
-        if let Some(s) = sizes.get_mut(r as usize) {
-            *s += 1;
-        }
-    }
-    sizes
 }
 
 impl Encoded {

@@ -1097,7 +1097,7 @@ fn residual_gradients(q: DVec3, r: DVec3) -> LocalTerms {
 
 /// Eigen-decomposition of a symmetric 3×3 matrix by cyclic Jacobi rotations: eigenvalues in
 /// decreasing order and a right-handed rotation whose columns are the eigenvectors.
-fn eigen_symmetric(m: [[f64; 3]; 3]) -> ([f64; 3], DMat3) {
+pub(crate) fn eigen_symmetric(m: [[f64; 3]; 3]) -> ([f64; 3], DMat3) {
     let (diagonal, v) = jacobi_eigen(m);
     let mut order = [0usize, 1, 2];
     order.sort_by(|&i, &j| diagonal[j].total_cmp(&diagonal[i]).then(i.cmp(&j)));

@@ -62,6 +62,7 @@
 use super::{
     Cut, Progress, ProxyMetric, RegionCount, SegmentError, SegmentOptions, Segmentation, Split,
 };
+use crate::ellipsoid::fit::eigen_symmetric;
 use crate::mesh::Mesh;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -197,11 +198,11 @@ pub(super) fn run<M: ProxyMetric>(
 /// seeding, left the new regions ragged; three let them settle).
 pub const SPLIT_ROUNDS: usize = 3;
 
-/// Adds one region inside each of `hosts` (the host cut in two across its longest axis; see
-/// [`Lloyd::halve`]), then relaxes [`SPLIT_ROUNDS`] rounds of the loop,
-/// warm-started from `segmentation`, in which only the hosts' faces change region. The new regions are numbered after the existing ones,
-/// in the order of `hosts`. Hosts out of range, repeated or with fewer than two faces are
-/// refused.
+/// Adds one region inside each of `hosts` (the host cut in two; see [`Lloyd::halve`]), then
+/// relaxes [`SPLIT_ROUNDS`] rounds of the loop, warm-started from `segmentation`, in which
+/// only the hosts' faces change region. The new regions are numbered after the existing
+/// ones, in the order of `hosts`. Hosts out of range, repeated or with fewer than two faces
+/// are refused.
 pub(super) fn split<M: ProxyMetric>(
     mesh: &Mesh,
     metric: &M,
@@ -915,24 +916,27 @@ impl<M: ProxyMetric> Lloyd<'_, M> {
             .iter()
             .map(|&f| self.mesh.face_centroid(f as usize))
             .collect();
-        let mean = centroids.iter().copied().sum::<DVec3>() / centroids.len() as f64;
-        let mut cov = glam::DMat3::ZERO;
-        for &c in &centroids {
-            let d = c - mean;
-            cov += glam::DMat3::from_cols(d * d.x, d * d.y, d * d.z);
-        }
-        // Power iteration from the diagonal's largest axis: deterministic.
-        let mut axis = [DVec3::X, DVec3::Y, DVec3::Z]
-            .into_iter()
-            .max_by(|a, b| (cov * *a).length().total_cmp(&(cov * *b).length()))
-            .unwrap_or(DVec3::X);
-        for _ in 0..64 {
-            match (cov * axis).try_normalize() {
-                Some(next) => axis = next,
-                None => break,
+        // Across the longest principal axis of the centroids, at the median.
+        let median_cut = || -> (Vec<f64>, f64) {
+            let mean = centroids.iter().copied().sum::<DVec3>() / centroids.len() as f64;
+            let mut cov = [[0.0; 3]; 3];
+            for &c in &centroids {
+                let d = c - mean;
+                for (i, row) in cov.iter_mut().enumerate() {
+                    for (j, v) in row.iter_mut().enumerate() {
+                        *v += d[i] * d[j];
+                    }
+                }
             }
-        }
-        let median_cut = |axis: DVec3| -> (Vec<f64>, f64) {
+            // Signed toward the coordinate axis the covariance stretches most, so that the
+            // side that becomes the new region does not hang on the eigensolver's sign.
+            let axis = eigen_symmetric(cov).1.x_axis;
+            let m = glam::DMat3::from_cols_array_2d(&cov);
+            let toward = [DVec3::X, DVec3::Y, DVec3::Z]
+                .into_iter()
+                .max_by(|a, b| (m * *a).length().total_cmp(&(m * *b).length()))
+                .unwrap_or(DVec3::X);
+            let axis = if axis.dot(toward) < 0.0 { -axis } else { axis };
             let along: Vec<f64> = centroids.iter().map(|&c| (c - mean).dot(axis)).collect();
             let mut sorted = along.clone();
             sorted.sort_by(f64::total_cmp);
@@ -951,10 +955,10 @@ impl<M: ProxyMetric> Lloyd<'_, M> {
                 if beyond > 0 && beyond < along.len() {
                     (along, 0.0)
                 } else {
-                    median_cut(axis)
+                    median_cut()
                 }
             }
-            _ => median_cut(axis),
+            _ => median_cut(),
         };
         let Some(seed) = (0..faces.len())
             .max_by(|&a, &b| along[a].total_cmp(&along[b]).then(b.cmp(&a)))
