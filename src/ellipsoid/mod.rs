@@ -80,6 +80,10 @@ pub struct Ellipsoid {
 /// radial projection is undefined.
 const CENTRE_EPSILON: f64 = 1e-14;
 
+/// Most iterations of [`Ellipsoid::closest_point`]'s root finder (Newton converges in a
+/// handful; bisection steps, which halve the bracket, bound the rest).
+const MAX_FOOT_ITERATIONS: usize = 100;
+
 impl Ellipsoid {
     /// A positive sphere.
     pub fn sphere(center: DVec3, radius: f64) -> Ellipsoid {
@@ -154,17 +158,25 @@ impl Ellipsoid {
     /// The point of the surface closest to `p` (the foot of the normal through `p`).
     ///
     /// In local coordinates the foot is x = r²∘q / (r² + t) for the root t > −min r² of
-    /// Σ (rᵢ qᵢ / (rᵢ² + t))² = 1, which decreases on that interval and is found by
-    /// bisection (after Eberly, *Distance from a point to an ellipse, an ellipsoid, or a
-    /// hyperellipsoid*, 2013). Unlike Π it moves a point near the surface along the normal
-    /// only, so points close together stay in order on the surface however oblique the
-    /// radial direction is. Where the foot is not unique (on the inner medial sheet, where
-    /// the root leaves the interval) it falls back to Π(p).
+    /// Σ (rᵢ qᵢ / (rᵢ² + t))² = 1, which decreases and is convex on that interval; the root
+    /// is bracketed as in Eberly, *Distance from a point to an ellipse, an ellipsoid, or a
+    /// hyperellipsoid* (2013), and found by Newton's method, falling back to bisection
+    /// whenever a step leaves the bracket (a few iterations instead of bisection's ~60). Unlike
+    /// Π it moves a point near the surface along the normal only, so points close together
+    /// stay in order on the surface however oblique the radial direction is. Where the foot
+    /// is not unique (on the inner medial sheet, where the root leaves the interval) it falls
+    /// back to Π(p).
     pub fn closest_point(&self, p: DVec3) -> DVec3 {
         let q = self.to_local(p);
         let r2 = self.radii * self.radii;
         let scaled = self.radii * q;
-        let f = |t: f64| (scaled / (r2 + DVec3::splat(t))).length_squared() - 1.0;
+        let s2 = scaled * scaled;
+        // f(t) and f'(t).
+        let eval = |t: f64| {
+            let w = DVec3::ONE / (r2 + DVec3::splat(t));
+            let terms = s2 * w * w;
+            (terms.element_sum() - 1.0, -2.0 * (terms * w).element_sum())
+        };
         let lo0 = -r2.min_element();
         let mut lo = lo0;
         let mut hi = self.radii.max_element() * q.length();
@@ -174,21 +186,33 @@ impl Ellipsoid {
         // f(hi) ≤ 0 by construction; f → +∞ at lo unless the point lies in the plane of the
         // shortest axis, where the root may not be in the interval.
         let near_lo = lo + (hi - lo).max(1.0) * 1e-15;
-        if f(near_lo) <= 0.0 {
+        if eval(near_lo).0 <= 0.0 {
             return self.project_radially(p);
         }
-        for _ in 0..200 {
-            let mid = 0.5 * (lo + hi);
-            if mid <= lo || mid >= hi {
+        let mut t = hi;
+        for _ in 0..MAX_FOOT_ITERATIONS {
+            let (f, df) = eval(t);
+            if f == 0.0 {
                 break;
             }
-            if f(mid) > 0.0 {
-                lo = mid;
+            if f > 0.0 {
+                lo = t;
             } else {
-                hi = mid;
+                hi = t;
+            }
+            let newton = t - f / df;
+            let next = if newton > lo && newton < hi {
+                newton
+            } else {
+                0.5 * (lo + hi)
+            };
+            // Converged once the step is down to rounding (of rᵢ² + t, which sets the foot).
+            let done = (next - t).abs() <= 4.0 * f64::EPSILON * (t.abs() + r2.min_element());
+            t = next;
+            if done {
+                break;
             }
         }
-        let t = 0.5 * (lo + hi);
         let local = r2 * q / (r2 + DVec3::splat(t));
         let foot = self.center + self.rotation * local;
         if foot.is_finite() && t > lo0 {

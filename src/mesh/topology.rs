@@ -24,6 +24,8 @@ pub struct Topology {
     vertex_face_offsets: Vec<u32>,
     vertex_faces: Vec<u32>,
     neighbors: Vec<[u32; 3]>,
+    /// Per face, two bits per edge: the neighbour's edge that is the same edge.
+    neighbor_edges: Vec<u8>,
     edge_flags: Vec<u8>,
     edge_count: usize,
     border_edge_count: usize,
@@ -44,6 +46,7 @@ impl Topology {
             vertex_face_offsets,
             vertex_faces,
             neighbors: vec![[NONE; 3]; faces.len()],
+            neighbor_edges: vec![0; faces.len()],
             edge_flags: vec![0; faces.len()],
             edge_count: 0,
             border_edge_count: 0,
@@ -64,40 +67,47 @@ impl Topology {
     }
 
     /// Classifies every edge and links faces across manifold edges.
+    ///
+    /// Each edge is found at its lower endpoint: the half-edges of the faces around a vertex
+    /// that lead to a higher vertex, sorted by that vertex, come in groups of one per edge
+    /// (each face around the vertex is read once, not once per edge).
     fn link_edges(&mut self, faces: &[[u32; 3]]) {
-        for (f, face) in faces.iter().enumerate() {
-            for i in 0..3 {
-                let (a, b) = (face[i], face[(i + 1) % 3]);
-                let mut incident = 1usize;
-                let mut lowest = f;
-                let mut other = NONE;
-                let mut same_direction = false;
-                for &g in self.faces_around(a) {
-                    let g = g as usize;
-                    if g == f {
-                        continue;
-                    }
-                    if let Some(j) = local_edge(&faces[g], a, b) {
-                        incident += 1;
-                        lowest = lowest.min(g);
-                        other = g as u32;
-                        same_direction = faces[g][j] == a;
+        // (other end, face, edge of the face).
+        let mut ends: Vec<(u32, u32, u8)> = Vec::new();
+        for a in 0..self.vertex_face_offsets.len().saturating_sub(1) {
+            let a = a as u32;
+            ends.clear();
+            for &g in self.faces_around(a) {
+                let face = &faces[g as usize];
+                let c = corner_of(face, a);
+                // Edge c runs a → face[c + 1]; edge c + 2 runs face[c + 2] → a.
+                for e in [c, (c + 2) % 3] {
+                    let b = if e == c { face[(c + 1) % 3] } else { face[e] };
+                    if b > a {
+                        ends.push((b, g, e as u8));
                     }
                 }
-                if incident == 2 {
-                    self.neighbors[f][i] = other;
-                }
-                if lowest == f {
-                    self.edge_flags[f] |= 1 << i;
-                    self.edge_count += 1;
-                    match incident {
-                        1 => self.border_edge_count += 1,
-                        2 => self.inconsistent_edge_count += usize::from(same_direction),
-                        _ => self.nonmanifold_edge_count += 1,
+            }
+            ends.sort_unstable();
+            for group in ends.chunk_by(|x, y| x.0 == y.0) {
+                // Sorted by face: the first is the lowest, which represents the edge.
+                let (_, lowest, e) = group[0];
+                self.edge_flags[lowest as usize] |= 1 << e;
+                self.edge_count += 1;
+                match *group {
+                    [(_, f, i)] => {
+                        self.border_edge_count += 1;
+                        self.edge_flags[f as usize] |= 1 << (BORDER_SHIFT + i);
                     }
-                }
-                if incident == 1 {
-                    self.edge_flags[f] |= 1 << (BORDER_SHIFT + i as u8);
+                    [(_, f, i), (_, g, j)] => {
+                        let (f, g, i, j) = (f as usize, g as usize, i as usize, j as usize);
+                        self.neighbors[f][i] = g as u32;
+                        self.neighbors[g][j] = f as u32;
+                        self.neighbor_edges[f] |= (j as u8) << (2 * i);
+                        self.neighbor_edges[g] |= (i as u8) << (2 * j);
+                        self.inconsistent_edge_count += usize::from(faces[f][i] == faces[g][j]);
+                    }
+                    _ => self.nonmanifold_edge_count += 1,
                 }
             }
         }
@@ -170,9 +180,8 @@ impl Topology {
                         continue;
                     }
                     let g = g as usize;
-                    let (a, b) = (faces[f][i], faces[f][(i + 1) % 3]);
-                    let j = local_edge(&faces[g], a, b).expect("neighbours share the edge");
-                    let agrees = faces[g][j] == b; // g runs the edge b→a
+                    let j = self.neighbor_edge(f, i);
+                    let agrees = faces[g][j] == faces[f][(i + 1) % 3]; // g runs the edge b→a
                     let want = flipped[f] ^ !agrees;
                     if component[g] == NONE {
                         component[g] = count;
@@ -259,6 +268,18 @@ impl Topology {
     pub fn neighbor(&self, f: usize, i: usize) -> Option<u32> {
         let g = self.neighbors[f][i];
         (g != NONE).then_some(g)
+    }
+
+    /// The face across edge `i` of face `f` and that face's edge that is the same edge, if
+    /// the edge is manifold.
+    pub fn across(&self, f: usize, i: usize) -> Option<(u32, usize)> {
+        self.neighbor(f, i).map(|g| (g, self.neighbor_edge(f, i)))
+    }
+
+    /// Which edge of the face across edge `i` of face `f` is that edge (0 when there is
+    /// none).
+    fn neighbor_edge(&self, f: usize, i: usize) -> usize {
+        usize::from((self.neighbor_edges[f] >> (2 * i)) & 0b11)
     }
 
     /// The faces across the three edges of face `f` (manifold edges only).
@@ -388,14 +409,6 @@ fn build_vertex_faces(vertex_count: usize, faces: &[[u32; 3]]) -> (Vec<u32>, Vec
     (offsets, incident)
 }
 
-/// Index of the edge of `face` joining `a` and `b` (either direction), if it has one.
-fn local_edge(face: &[u32; 3], a: u32, b: u32) -> Option<usize> {
-    (0..3).find(|&j| {
-        let (x, y) = (face[j], face[(j + 1) % 3]);
-        (x == a && y == b) || (x == b && y == a)
-    })
-}
-
 /// Corner of `face` holding vertex `v` (which it must contain).
 fn corner_of(face: &[u32; 3], v: u32) -> usize {
     face.iter()
@@ -418,16 +431,14 @@ pub(crate) fn orientation_flips(topology: &Topology, faces: &[[u32; 3]]) -> Vec<
         queue.push_back(seed);
         while let Some(f) = queue.pop_front() {
             for i in 0..3 {
-                let Some(g) = topology.neighbor(f, i) else {
+                let Some((g, j)) = topology.across(f, i) else {
                     continue;
                 };
                 let g = g as usize;
                 if visited[g] {
                     continue;
                 }
-                let (a, b) = (faces[f][i], faces[f][(i + 1) % 3]);
-                let j = local_edge(&faces[g], a, b).expect("neighbours share the edge");
-                let agrees = faces[g][j] == b;
+                let agrees = faces[g][j] == faces[f][(i + 1) % 3];
                 visited[g] = true;
                 flip[g] = flip[f] ^ !agrees;
                 queue.push_back(g);
@@ -457,6 +468,34 @@ mod tests {
         for f in 0..4 {
             assert_eq!(t.neighbors(f).count(), 3);
         }
+    }
+
+    #[test]
+    fn across_names_the_same_edge_in_the_neighbour() {
+        // The tetrahedron, and the same with one face flipped (edges run the same way).
+        let mut flipped = TETRA;
+        flipped[3] = [1, 2, 3];
+        for faces in [TETRA, flipped] {
+            let t = topo(4, &faces);
+            for (f, face) in faces.iter().enumerate() {
+                for i in 0..3 {
+                    let (g, j) = t.across(f, i).unwrap();
+                    let g = g as usize;
+                    assert_ne!(g, f);
+                    let mine = [face[i], face[(i + 1) % 3]];
+                    let theirs = [faces[g][j], faces[g][(j + 1) % 3]];
+                    assert!(
+                        theirs == mine || theirs == [mine[1], mine[0]],
+                        "{f}.{i}: {mine:?} vs {g}.{j}: {theirs:?}"
+                    );
+                    assert_eq!(t.across(g, j), Some((f as u32, i)));
+                }
+            }
+        }
+        // No neighbour across a border.
+        let t = topo(4, &[[0, 1, 2], [0, 2, 3]]);
+        assert_eq!(t.across(0, 0), None);
+        assert_eq!(t.across(0, 2).map(|(g, _)| g), Some(1));
     }
 
     #[test]

@@ -351,7 +351,7 @@ fn angle_between(a: DVec3, b: DVec3) -> f64 {
 }
 
 /// Angular distance from `c` to the shorter great-circle arc from `a` to `b` (all unit): the
-/// reference [`arc_chord_squared`] is tested against.
+/// reference [`SphereEdges::distance`] is tested against.
 #[cfg(test)]
 fn arc_distance(c: DVec3, a: DVec3, b: DVec3) -> f64 {
     let ends = angle_between(c, a).min(angle_between(c, b));
@@ -366,31 +366,68 @@ fn arc_distance(c: DVec3, a: DVec3, b: DVec3) -> f64 {
     }
 }
 
-/// Angular distance from `c` to the nearest edge of the loops.
-///
-/// The minimum is taken over squared chord lengths, which grow with the angle, and turned
-/// into an angle once: no inverse trigonometry per edge (the pole search calls this for
-/// hundreds of candidates against every boundary edge).
-fn boundary_distance(c: DVec3, loops: &[Vec<DVec3>]) -> f64 {
-    let mut best = f64::INFINITY;
-    for l in loops {
-        for (i, &a) in l.iter().enumerate() {
-            let b = l.get(i + 1).or(l.first()).copied().unwrap_or(a);
-            best = best.min(arc_chord_squared(c, a, b));
-        }
+/// The edges of unit-sphere loops, each with its great circle's unit normal (computed once:
+/// the pole search measures hundreds of candidates against every edge).
+struct SphereEdges {
+    /// Per edge: its ends and, unless they are (anti)parallel, the normal of a × b.
+    edges: Vec<(DVec3, DVec3, Option<DVec3>)>,
+}
+
+impl SphereEdges {
+    fn new(loops: &[Vec<DVec3>]) -> SphereEdges {
+        let edges = loops
+            .iter()
+            .flat_map(|l| {
+                l.iter().enumerate().map(|(i, &a)| {
+                    let b = l.get(i + 1).or(l.first()).copied().unwrap_or(a);
+                    (a, b, a.cross(b).try_normalize())
+                })
+            })
+            .collect();
+        SphereEdges { edges }
     }
-    if best.is_finite() {
-        2.0 * (0.5 * best.max(0.0).sqrt()).min(1.0).asin()
-    } else {
-        best
+
+    /// Angular distance from `c` to the nearest edge.
+    ///
+    /// The minimum is taken over squared chord lengths, which grow with the angle, and
+    /// turned into an angle once: no inverse trigonometry per edge.
+    fn distance(&self, c: DVec3) -> f64 {
+        self.distance_beyond(c, f64::NEG_INFINITY)
+    }
+
+    /// [`Self::distance`] if it is more than `floor`; otherwise some value at most `floor`,
+    /// found without scanning every edge (the scan stops at the first edge clearly closer
+    /// than `floor`).
+    fn distance_beyond(&self, c: DVec3, floor: f64) -> f64 {
+        // The chord² of `floor`, lowered a little so that rounding never stops a scan whose
+        // distance would come out above `floor`.
+        let stop = if floor > 0.0 {
+            let half = (0.5 * floor).min(std::f64::consts::FRAC_PI_2).sin();
+            4.0 * half * half * (1.0 - 1e-9)
+        } else {
+            f64::NEG_INFINITY
+        };
+        let mut best = f64::INFINITY;
+        for &(a, b, n) in &self.edges {
+            best = best.min(arc_chord_squared(c, a, b, n));
+            if best < stop {
+                return f64::NEG_INFINITY;
+            }
+        }
+        if best.is_finite() {
+            2.0 * (0.5 * best.max(0.0).sqrt()).min(1.0).asin()
+        } else {
+            best
+        }
     }
 }
 
 /// Squared chord length from `c` to its nearest point on the shorter great-circle arc from
-/// `a` to `b` (all unit): 4·sin²(θ/2) for the angular distance θ of [`arc_distance`].
-fn arc_chord_squared(c: DVec3, a: DVec3, b: DVec3) -> f64 {
+/// `a` to `b` (all unit; `n` the unit normal of a × b, if any): 4·sin²(θ/2) for the angular
+/// distance θ of [`arc_distance`].
+fn arc_chord_squared(c: DVec3, a: DVec3, b: DVec3, n: Option<DVec3>) -> f64 {
     let ends = (c - a).length_squared().min((c - b).length_squared());
-    let Some(n) = a.cross(b).try_normalize() else {
+    let Some(n) = n else {
         return ends;
     };
     if a.cross(c).dot(n) >= 0.0 && c.cross(b).dot(n) >= 0.0 {
@@ -460,10 +497,11 @@ fn decimate_loops(loops: &[Vec<DVec3>], budget: usize) -> Vec<Vec<DVec3>> {
 /// [`SCORING_POINTS`] points); a candidate is accepted only if it is outside the region and
 /// at least [`MIN_CLEARANCE`] from the whole boundary.
 fn choose_pole(ellipsoid: &Ellipsoid, loops: &[Vec<DVec3>]) -> Option<(DVec3, f64)> {
-    let coarse = decimate_loops(loops, SCORING_POINTS);
-    let score = |c: DVec3| boundary_distance(c, &coarse);
+    let coarse = SphereEdges::new(&decimate_loops(loops, SCORING_POINTS));
+    let all = SphereEdges::new(loops);
+    let score = |c: DVec3| coarse.distance(c);
     let accept = |c: DVec3| {
-        let exact = boundary_distance(c, loops);
+        let exact = all.distance(c);
         (exact >= MIN_CLEARANCE && is_outside(ellipsoid, loops, c)).then_some(exact)
     };
     let mut candidates = fibonacci_directions(POLE_CANDIDATES);
@@ -492,7 +530,7 @@ fn choose_pole(ellipsoid: &Ellipsoid, loops: &[Vec<DVec3>]) -> Option<(DVec3, f6
                 let dir = t1 * c + t2 * s;
                 (best * step.cos() + dir * step.sin()).try_normalize()
             })
-            .map(|c| (score(c), c))
+            .map(|c| (coarse.distance_beyond(c, best_score), c))
             .filter(|&(s, _)| s > best_score)
             .collect();
         moves.sort_by(|a, b| b.0.total_cmp(&a.0));
@@ -657,14 +695,14 @@ mod tests {
                 .flat_map(|l| (0..l.len()).map(move |i| (l[i], l[(i + 1) % l.len()])))
                 .map(|(a, b)| arc_distance(c, a, b))
                 .fold(f64::INFINITY, f64::min);
-            let fast = boundary_distance(c, &loops);
+            let fast = SphereEdges::new(&loops).distance(c);
             assert!((fast - reference).abs() < 1e-12, "{fast} vs {reference}");
         }
         // Tiny distances keep their precision.
         let a = DVec3::X;
         let b = DVec3::new(0.0, 1.0, 0.0);
         let c = DVec3::new(1.0, 1.0, 1e-9).normalize();
-        let d = boundary_distance(c, &[vec![a, b, DVec3::new(0.0, 0.0, -1.0)]]);
+        let d = SphereEdges::new(&[vec![a, b, DVec3::new(0.0, 0.0, -1.0)]]).distance(c);
         assert!((d - arc_distance(c, a, b)).abs() < 1e-20, "{d}");
     }
 
