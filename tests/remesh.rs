@@ -8,7 +8,7 @@ mod common;
 use ellip::encode::{encode_mesh, EncodeSettings};
 use ellip::format::{decode, Limits};
 use ellip::import::{read_mesh, ImportOptions};
-use ellip::remesh::{remesh, RemeshOptions, Remeshed, Scheme};
+use ellip::remesh::{remesh, RemeshOptions, Remeshed, Scheme, SUBDIVISION_COARSE_VERTICES};
 use ellip::representation::Representation;
 use ellip::rng::SplitMix64;
 use ellip::segment::{RegionCount, SegmentOptions};
@@ -366,7 +366,8 @@ fn a_sphere_only_file_gives_a_closed_sphere() {
     assert_eq!(rep.region_count(), 1);
     assert!(rep.cycles[0].is_empty());
     let e = rep.ellipsoids[0];
-    for budget in [100, 1000, 5000] {
+    // 50 000: subdivided once; its new points must land on the sphere too.
+    for budget in [100, 1000, 5000, 50_000] {
         let out = remesh(&rep, &options(budget, Scheme::Adaptive)).unwrap();
         let context = format!("sphere at {budget}");
         assert_clean(&out, &context);
@@ -462,6 +463,80 @@ fn the_vertex_budget_is_honoured_within_one_percent() {
             );
             assert_closed(&out, &format!("{scheme:?} {budget}"));
         }
+    }
+}
+
+#[test]
+fn subdivision_levels_follow_the_budget() {
+    let o = RemeshOptions::default();
+    let c = SUBDIVISION_COARSE_VERTICES;
+    for (budget, levels) in [
+        (4 * c - 1, 0),
+        (4 * c, 1),
+        (16 * c - 1, 1),
+        (16 * c, 2),
+        (64 * c, 3),
+        (ellip::remesh::MAX_VERTICES, 3),
+    ] {
+        assert_eq!(o.subdivision_levels(budget), levels, "{budget}");
+    }
+    // Only the adaptive scheme, without a tolerance, and only when allowed.
+    for other in [
+        RemeshOptions {
+            subdivision: false,
+            ..o.clone()
+        },
+        RemeshOptions {
+            tolerance: Some(1e-3),
+            ..o.clone()
+        },
+        RemeshOptions {
+            scheme: Scheme::Parametric,
+            ..o.clone()
+        },
+    ] {
+        assert_eq!(other.subdivision_levels(64 * c), 0, "{other:?}");
+    }
+}
+
+/// Large budgets are met by meshing adaptively at a quarter of the budget and splitting every
+/// triangle into four (issue 6's throughput). The result must be what vertex addition gives:
+/// clean and closed, the budget within 1 %, as close to the source (RMS within 10 %), and
+/// near the surface vertex addition meshes (symmetric RMS under 0.1 % of the diagonal).
+#[test]
+fn subdivision_meets_large_budgets_like_vertex_addition() {
+    let budget = 4 * SUBDIVISION_COARSE_VERTICES;
+    for name in ["blob1.obj", "blob4.obj"] {
+        let mesh = source(name);
+        let (_, rep) = encode(&mesh, blob_ellipsoids(name));
+        let fast = remesh(&rep, &options(budget, Scheme::Adaptive)).unwrap();
+        let slow = remesh(
+            &rep,
+            &RemeshOptions {
+                subdivision: false,
+                ..options(budget, Scheme::Adaptive)
+            },
+        )
+        .unwrap();
+        assert_clean(&fast, name);
+        assert_closed(&fast, name);
+        let n = fast.mesh.vertex_count();
+        assert!(n.abs_diff(budget) * 100 <= budget, "{name}: {n} vertices");
+        // It was subdivided: faces come in fours, the last of each group joining the
+        // midpoints the other three have.
+        let faces = fast.mesh.faces();
+        assert_eq!(faces.len() % 4, 0, "{name}");
+        for group in faces.chunks(4) {
+            for v in group[3] {
+                let uses = group[..3].iter().filter(|f| f.contains(&v)).count();
+                assert_eq!(uses, 2, "{name}: {group:?}");
+            }
+        }
+        let (f, s) = (rms_to(&mesh, &fast.mesh), rms_to(&mesh, &slow.mesh));
+        let (between, _) = symmetric_distance(&fast.mesh, &slow.mesh, 4000);
+        println!("{name}: RMS subdivided {f:.5}, vertex addition {s:.5}, apart {between:.5}");
+        assert!(f <= 1.1 * s, "{name}: subdivided {f} vs {s}");
+        assert!(between < 1e-3, "{name}: {between}");
     }
 }
 

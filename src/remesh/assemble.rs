@@ -25,6 +25,7 @@
 
 use super::chart::{Projection, RegionChart};
 use super::refine::{refine_arcs, RefineSettings};
+use super::subdivide::subdivide;
 use super::triangulate::{
     boundary_crossing, triangulate_parametric, AdaptiveTriangulation, Corner, Crossing,
     RegionInput, RegionMesh,
@@ -175,8 +176,41 @@ pub fn region_faults(
     Ok(faults)
 }
 
-/// Remeshes every region and joins them (see [`super::remesh`] and the module doc).
+/// Remeshes every region and joins them (see [`super::remesh`] and the module doc). A large
+/// budget ([`RemeshOptions::subdivision_levels`]) is met by meshing at a fraction of it and
+/// subdividing ([`super::subdivide`]); when the subdivided mesh is not clean, with one level
+/// fewer, and so on; when the coarse mesh is not clean, by meshing at the full budget.
 pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshed, RemeshError> {
+    rep.validate()?;
+    options.validate()?;
+    let budget = options.budget(rep);
+    // Fewer levels when a subdivided mesh is not clean: a triangle nearly edge-on to its
+    // ellipsoid, fine in the coarse mesh, can have a child that is not (the ellipsoid's
+    // normal turns across it).
+    for levels in (1..=options.subdivision_levels(budget)).rev() {
+        let coarse_options = RemeshOptions {
+            vertices: Some(budget.div_ceil(4usize.pow(levels))),
+            ..options.clone()
+        };
+        let Ok(coarse) = assemble_unsubdivided(rep, &coarse_options) else {
+            break;
+        };
+        if !coarse.check.is_clean() {
+            break;
+        }
+        match subdivide(rep, coarse, levels, options.max_vertices) {
+            Ok(fine) if fine.check.is_clean() => return Ok(fine),
+            _ => {}
+        }
+    }
+    assemble_unsubdivided(rep, options)
+}
+
+/// [`assemble`] without subdivision: every vertex placed by the scheme (the attempts below).
+fn assemble_unsubdivided(
+    rep: &Representation,
+    options: &RemeshOptions,
+) -> Result<Remeshed, RemeshError> {
     let prepared = prepare(rep, options)?;
     let settings = prepared.settings;
     let mut plan = prepared.plan(rep, options);
@@ -415,26 +449,41 @@ fn untangle(
     points: &[DVec3],
     projection: Projection,
 ) {
+    // Regions whose loops changed since they were last looked at: the others would find
+    // the same crossings, whose drops were refused.
+    let mut changed = vec![true; rep.cycles.len()];
     for _ in 0..UNTANGLE_ROUNDS {
         // (arc, position in its chain) of the points to drop.
         let mut drop: Vec<(u32, usize)> = Vec::new();
         for (r, cycles) in rep.cycles.iter().enumerate() {
-            if !cycles.is_empty() {
+            if !cycles.is_empty() && changed[r] {
                 region_crossings(r as u32, rep, chains, points, projection, &mut drop);
             }
         }
         if drop.is_empty() {
             return;
         }
+        changed.fill(false);
         drop.sort_unstable();
         drop.dedup();
         // Remove from the back of each chain so that positions stay valid.
         for &(arc, at) in drop.iter().rev() {
-            let closed = rep.arcs.get(arc as usize).is_some_and(|a| a.closed);
+            let Some(a) = rep.arcs.get(arc as usize) else {
+                continue;
+            };
             if let Some(chain) = chains.get_mut(arc as usize) {
-                let min_len = if closed { 3 } else { 2 };
+                let min_len = if a.closed { 3 } else { 2 };
                 if chain.len() > min_len && at < chain.len() {
                     chain.remove(at);
+                    let right = match a.right {
+                        Side::Region(r) => Some(r),
+                        Side::Border => None,
+                    };
+                    for side in [Some(a.left), right] {
+                        if let Some(flag) = side.and_then(|r| changed.get_mut(r as usize)) {
+                            *flag = true;
+                        }
+                    }
                 }
             }
         }
@@ -1128,7 +1177,7 @@ fn drop_unused(positions: Vec<DVec3>, mut faces: Vec<[u32; 3]>) -> (Vec<DVec3>, 
 
 /// Per vertex, the signed ellipsoid normals of the regions it touches, averaged and
 /// normalised (faces are grouped by region, so each region counts once per vertex).
-fn vertex_normals(
+pub(super) fn vertex_normals(
     rep: &Representation,
     positions: &[DVec3],
     faces: &[[u32; 3]],

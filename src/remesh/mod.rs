@@ -11,7 +11,9 @@
 //! - [`triangulate`]: one region's constrained Delaunay triangulation in its chart (spade),
 //!   by iterative vertex addition (section 5.3, the default) or from a parametric grid
 //!   (section 5.2);
-//! - [`assemble`]: the regions joined into one watertight mesh with analytic normals.
+//! - [`assemble`]: the regions joined into one watertight mesh with analytic normals;
+//! - [`subdivide`]: for large budgets, that mesh made at a fraction of the budget and split
+//!   uniformly, every new point on its ellipsoid or boundary curve.
 //!
 //! [`remesh`] runs them all.
 
@@ -19,6 +21,7 @@ pub mod assemble;
 pub mod chart;
 pub mod query;
 pub mod refine;
+pub mod subdivide;
 pub mod triangulate;
 
 use crate::mesh::{Mesh, MeshError};
@@ -57,7 +60,19 @@ pub struct RemeshOptions {
     pub scheme: Scheme,
     /// Upper bound on the budget (default [`MAX_VERTICES`]).
     pub max_vertices: usize,
+    /// Whether a large budget (at least 4 × [`SUBDIVISION_COARSE_VERTICES`], adaptive
+    /// scheme, no tolerance) may be met by meshing adaptively at a quarter, a sixteenth or a
+    /// sixty-fourth of it and splitting every triangle into four ([`subdivide`]); default
+    /// true. Off, every vertex is placed by iterative vertex addition (several times slower
+    /// at hundreds of thousands of vertices).
+    pub subdivision: bool,
 }
+
+/// Fewest vertices the adaptive mesh that [`subdivide`] refines is made with.
+pub const SUBDIVISION_COARSE_VERTICES: usize = 10_000;
+
+/// Most levels of subdivision (each multiplies the vertex count by about four).
+pub const MAX_SUBDIVISION_LEVELS: u32 = 3;
 
 impl Default for RemeshOptions {
     fn default() -> Self {
@@ -66,6 +81,7 @@ impl Default for RemeshOptions {
             tolerance: None,
             scheme: Scheme::Adaptive,
             max_vertices: MAX_VERTICES,
+            subdivision: true,
         }
     }
 }
@@ -97,6 +113,23 @@ impl RemeshOptions {
             }
         }
         Ok(())
+    }
+
+    /// How many times [`remesh`] subdivides an adaptive mesh to meet `budget` vertices: the
+    /// most levels (up to [`MAX_SUBDIVISION_LEVELS`]) that leave the adaptive mesh at least
+    /// [`SUBDIVISION_COARSE_VERTICES`]; 0 unless [`RemeshOptions::subdivision`] is on, the
+    /// scheme adaptive and no tolerance set (a tolerance is met by vertex addition alone).
+    pub fn subdivision_levels(&self, budget: usize) -> u32 {
+        if !self.subdivision || self.scheme != Scheme::Adaptive || self.tolerance.is_some() {
+            return 0;
+        }
+        let mut levels = 0;
+        while levels < MAX_SUBDIVISION_LEVELS
+            && budget / 4usize.pow(levels + 1) >= SUBDIVISION_COARSE_VERTICES
+        {
+            levels += 1;
+        }
+        levels
     }
 
     /// The vertex budget for `rep`: the option, else the file's suggestion, else the source

@@ -1,0 +1,198 @@
+//! Uniform refinement of an assembled mesh: each triangle split into four at its edges'
+//! midpoints, every new point put back on the surface its edge lies on.
+//!
+//! Iterative vertex addition (section 5.3) places vertices where the error is, but each
+//! insertion costs a priority-queue pop and a Delaunay update; at hundreds of thousands of
+//! vertices that dominates decoding. On a smooth surface the adaptive mesh's density is
+//! already right at a fraction of the budget: splitting every triangle into four keeps that
+//! distribution (the chord error, which grows with the squared edge length, drops fourfold
+//! everywhere) at a linear cost. So a large budget is met by meshing adaptively at a quarter
+//! (or a sixteenth, ...) of it and subdividing ([`super::assemble`] decides).
+//!
+//! Where the new point of an edge goes: onto the surface the edge lies on — inside a region
+//! (both faces in it) or on the mesh border, the region's ellipsoid (radial projection, as
+//! the adaptive scheme's points are placed); between two regions, the intersection curve of
+//! their ellipsoids (Newton, as in [`super::refine`]) — *plus the mean of its ends' offsets
+//! from that surface*. Boundary points need not lie on the ellipsoids (stored points are
+//! quantised, refined ones lie on the curve only where the fits meet); snapping the new
+//! points fully would tilt the ever smaller triangles at a boundary point until they flip,
+//! whereas carrying the offsets blends them linearly into the interior: each level halves
+//! the distance over which a boundary point's offset fades. Where a projection fails or lands
+//! far from the chord, or where a new point would turn a triangle over, the chord midpoint
+//! is used.
+//!
+//! Both faces of an edge use its one new point, so a closed manifold mesh stays closed and
+//! manifold: V' = V + E, F' = 4F.
+
+use super::assemble::{check_mesh, vertex_normals};
+use super::refine::project_to_intersection;
+use super::{RemeshError, Remeshed};
+use crate::mesh::{Mesh, MAX_ELEMENTS};
+use crate::representation::Representation;
+use glam::DVec3;
+
+/// Marks an edge whose new point is not made yet.
+const UNSET: u32 = u32::MAX;
+
+/// Splits every triangle of `coarse` into four, `levels` times (see the module doc), and
+/// checks the result ([`check_mesh`]). Deterministic.
+///
+/// Errors: [`RemeshError::TooManyVertices`] when the result would exceed `max_vertices` (or
+/// the mesh's index range); [`RemeshError::Mesh`] if the result is refused (a bug).
+pub fn subdivide(
+    rep: &Representation,
+    coarse: Remeshed,
+    levels: u32,
+    max_vertices: usize,
+) -> Result<Remeshed, RemeshError> {
+    let Remeshed {
+        mut mesh,
+        normals,
+        mut face_regions,
+        check,
+    } = coarse;
+    if levels == 0 {
+        return Ok(Remeshed {
+            mesh,
+            normals,
+            face_regions,
+            check,
+        });
+    }
+    for _ in 0..levels {
+        let t = mesh.topology();
+        let needed = mesh.vertex_count() + t.edge_count();
+        if needed > max_vertices.min(MAX_ELEMENTS) || mesh.face_count() * 4 > MAX_ELEMENTS {
+            return Err(RemeshError::TooManyVertices {
+                needed,
+                max: max_vertices,
+            });
+        }
+        let (positions, faces, regions) = split_faces(rep, &mesh, &face_regions);
+        mesh = Mesh::new(positions, faces)?;
+        face_regions = regions;
+    }
+    let normals = vertex_normals(rep, mesh.positions(), mesh.faces(), &face_regions);
+    let check = check_mesh(rep, &mesh, &face_regions);
+    Ok(Remeshed {
+        mesh,
+        normals,
+        face_regions,
+        check,
+    })
+}
+
+/// One level: the positions (old ones first, then one per edge in order of first use), the
+/// faces (four per face, in order: the three corners', then the middle one) and their
+/// regions.
+fn split_faces(
+    rep: &Representation,
+    mesh: &Mesh,
+    face_regions: &[u32],
+) -> (Vec<DVec3>, Vec<[u32; 3]>, Vec<u32>) {
+    let faces = mesh.faces();
+    let topology = mesh.topology();
+    let mut positions = Vec::with_capacity(mesh.vertex_count() + topology.edge_count());
+    positions.extend_from_slice(mesh.positions());
+    let region_of = |f: usize| face_regions.get(f).copied().unwrap_or(0);
+    // Per face, the new point of each edge (edge i runs from corner i to corner i + 1).
+    let mut middles = vec![[UNSET; 3]; faces.len()];
+    for (f, face) in faces.iter().enumerate() {
+        for i in 0..3 {
+            if middles[f][i] != UNSET {
+                continue;
+            }
+            let (a, b) = (face[i], face[(i + 1) % 3]);
+            let region = region_of(f);
+            let across = topology.across(f, i).map(|(g, j)| (g as usize, j));
+            let first = rep.ellipsoids.get(region as usize);
+            let second = across
+                .map(|(g, _)| region_of(g))
+                .filter(|&r| r != region)
+                .and_then(|r| rep.ellipsoids.get(r as usize));
+            let (pa, pb) = (positions[a as usize], positions[b as usize]);
+            let point = match (first, second) {
+                (Some(e), None) => between(pa, pb, |p| Some(e.project_radially(p))),
+                (Some(e1), Some(e2)) => between(pa, pb, |p| project_to_intersection(e1, e2, p)),
+                _ => 0.5 * (pa + pb),
+            };
+            let index = positions.len() as u32;
+            positions.push(point);
+            middles[f][i] = index;
+            if let Some((g, j)) = across {
+                middles[g][j] = index;
+            }
+        }
+    }
+    let children = |f: usize| {
+        let [a, b, c] = faces[f];
+        let [ab, bc, ca] = middles[f];
+        [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]
+    };
+    // Where a new point turns a child against its ellipsoid (a strongly curved spot, or
+    // offsets that disagree), the face's new points go back to the chord midpoints: its
+    // children then lie in its plane, oriented as it is. That moves its neighbours' points
+    // too, hence the rounds.
+    for _ in 0..REPAIR_ROUNDS {
+        let mut moved = false;
+        for f in 0..faces.len() {
+            let Some(e) = rep.ellipsoids.get(region_of(f) as usize) else {
+                continue;
+            };
+            let turned = children(f).iter().any(|child| {
+                let [p, q, r] = child.map(|v| positions[v as usize]);
+                (q - p).cross(r - p).dot(e.normal((p + q + r) / 3.0)) <= 0.0
+            });
+            if !turned {
+                continue;
+            }
+            let face = faces[f];
+            for i in 0..3 {
+                let chord =
+                    0.5 * (positions[face[i] as usize] + positions[face[(i + 1) % 3] as usize]);
+                let m = &mut positions[middles[f][i] as usize];
+                if *m != chord {
+                    *m = chord;
+                    moved = true;
+                }
+            }
+        }
+        if !moved {
+            break;
+        }
+    }
+    let mut new_faces = Vec::with_capacity(faces.len() * 4);
+    let mut new_regions = Vec::with_capacity(faces.len() * 4);
+    for f in 0..faces.len() {
+        new_faces.extend(children(f));
+        new_regions.extend([region_of(f); 4]);
+    }
+    (positions, new_faces, new_regions)
+}
+
+/// Most rounds of moving new points back to their chords in [`split_faces`].
+const REPAIR_ROUNDS: usize = 4;
+
+/// Largest distance of a new point from its chord's midpoint, as a fraction of the chord: a
+/// smooth surface's sagitta is far smaller wherever the adaptive mesh resolves it.
+const MAX_BULGE: f64 = 0.25;
+
+/// The new point of the edge `a`–`b` on the surface `project` maps to: the projected chord
+/// midpoint plus the mean of the ends' offsets from their projections (see the module doc);
+/// the chord midpoint where a projection fails or strays more than [`MAX_BULGE`].
+fn between(a: DVec3, b: DVec3, project: impl Fn(DVec3) -> Option<DVec3>) -> DVec3 {
+    let mid = 0.5 * (a + b);
+    let reach = MAX_BULGE * (b - a).length();
+    let offset = |p: DVec3| project(p).map(|q| p - q);
+    match (project(mid), offset(a), offset(b)) {
+        (Some(m), Some(oa), Some(ob)) => {
+            let point = m + 0.5 * (oa + ob);
+            if point.is_finite() && (point - mid).length() <= reach {
+                point
+            } else {
+                mid
+            }
+        }
+        _ => mid,
+    }
+}
