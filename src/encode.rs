@@ -146,10 +146,10 @@ pub fn encode_mesh(
     }
     // Decode what was written; split the regions the decoder could not mesh cleanly and
     // write again, until it decodes clean or the split budget is spent. Kept: the first
-    // clean encoding, else the one with the fewest regions to blame (then the fewest
-    // regions).
+    // clean encoding, else the best: one that decodes (with faults) over one that does not,
+    // then the fewest regions to blame, then the fewest regions.
     let max_added = MAX_SPLIT_REGIONS.max(requested);
-    let mut best: Option<(usize, Encoded)> = None;
+    let mut best: Option<((u8, usize), Encoded)> = None;
     loop {
         let (stored, boundary_points) = match represent(mesh, &segmentation, settings) {
             Ok(r) => r,
@@ -158,9 +158,10 @@ pub fn encode_mesh(
             Err(EncodeMeshError::Representation(_)) if best.is_some() => break,
             Err(e) => return Err(e),
         };
-        let (blamed, problem) = match verify(&stored.bytes)? {
-            Verdict::Clean => (Vec::new(), None),
-            Verdict::Blame(regions, problem) => (regions, Some(problem)),
+        let (rank, blamed, problem) = match verify(&stored.bytes)? {
+            Verdict::Clean => (0, Vec::new(), None),
+            Verdict::Dirty(regions, problem) => (1, regions, Some(problem)),
+            Verdict::Fails(regions, problem) => (2, regions, Some(problem)),
         };
         verification.problem = problem;
         let done = verification.problem.is_none();
@@ -170,7 +171,7 @@ pub fn encode_mesh(
             boundary_points,
             verification.clone(),
         );
-        let score = blamed.len().max(usize::from(!done));
+        let score = (rank, blamed.len());
         if best.as_ref().is_none_or(|(s, _)| score < *s) {
             best = Some((score, candidate));
         }
@@ -218,12 +219,13 @@ pub struct Verification {
     pub problem: Option<String>,
 }
 
-/// What decoding an encoding at its suggested density gave.
+/// What decoding an encoding at its suggested density gave: clean, a mesh with faults, or
+/// an error; with the regions to blame (possibly none), each with where to cut it when that
+/// is known, and what went wrong.
 enum Verdict {
     Clean,
-    /// The regions to blame (possibly none), each with where to cut it when that is known,
-    /// and what went wrong.
-    Blame(Vec<Split>, String),
+    Dirty(Vec<Split>, String),
+    Fails(Vec<Split>, String),
 }
 
 /// Decodes `bytes` as any reader would ([`format::Limits::default`],
@@ -258,7 +260,7 @@ fn verify(bytes: &[u8]) -> Result<Verdict, EncodeMeshError> {
                 .into_iter()
                 .map(|region| Split { region, cut: None })
                 .collect();
-            Ok(Verdict::Blame(blamed, problem))
+            Ok(Verdict::Dirty(blamed, problem))
         }
         // The decoder reports the region its last attempt stopped at, which is often not
         // where its first (and best) attempt failed. Blamed instead: the first region that
@@ -273,7 +275,7 @@ fn verify(bytes: &[u8]) -> Result<Verdict, EncodeMeshError> {
                     cut: f.crossing.and_then(cut_between),
                 })
                 .unwrap_or(Split { region, cut: None });
-            Ok(Verdict::Blame(
+            Ok(Verdict::Fails(
                 vec![split],
                 format!("does not decode: region {region}: {what}"),
             ))

@@ -281,3 +281,33 @@ fn real_meshes_with_unchartable_regions_are_split_until_they_decode_clean() {
         }
     }
 }
+
+/// Where splitting cannot make a file decode clean, the encoder still prefers a file that
+/// decodes (with a few faulty triangles) to one the decoder refuses: teddy at K = 18 fails
+/// to decode unsplit ("a boundary edge is used twice"), and one of its split rounds decodes.
+#[test]
+fn a_file_that_decodes_is_kept_over_one_that_does_not() {
+    let Some(dir) = common::shared_dir() else {
+        eprintln!("../shared/meshes not found: skipped");
+        return;
+    };
+    let mesh = read_mesh(&dir.join("teddy.obj"), &ImportOptions::default())
+        .unwrap()
+        .mesh;
+    let options = ellip::remesh::RemeshOptions::default();
+    let unchecked = EncodeSettings {
+        verify: false,
+        ..settings(18)
+    };
+    let plain = encode_mesh(&mesh, &unchecked, &mut |_| {}).unwrap();
+    let rep = decode(&plain.bytes, &Limits::default()).unwrap();
+    assert!(ellip::remesh::remesh(&rep, &options).is_err());
+    let encoded = encode_mesh(&mesh, &settings(18), &mut |_| {}).unwrap();
+    let rep = decode(&encoded.bytes, &Limits::default()).unwrap();
+    let out = ellip::remesh::remesh(&rep, &options).expect("the kept file decodes");
+    let v = &encoded.verification;
+    assert!(v.rounds >= 1);
+    // Whatever is left is said.
+    assert_eq!(v.problem.is_none(), out.check.is_clean(), "{:?}", v.problem);
+    assert!(out.check.manifold, "{:?}", out.check);
+}
