@@ -178,15 +178,13 @@ pub fn region_faults(
 
 /// Remeshes every region and joins them (see [`super::remesh`] and the module doc). A large
 /// budget ([`RemeshOptions::subdivision_levels`]) is met by meshing at a fraction of it and
-/// subdividing ([`super::subdivide`]); when the subdivided mesh is not clean, with one level
-/// fewer, and so on; when the coarse mesh is not clean, by meshing at the full budget.
+/// subdividing ([`super::subdivide`]), which keeps a clean coarse mesh clean; when the
+/// coarse mesh is not clean (the meshing of some regions depends on the budget), with one
+/// level fewer, and so on; failing all, by meshing at the full budget.
 pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshed, RemeshError> {
     rep.validate()?;
     options.validate()?;
     let budget = options.budget(rep);
-    // Fewer levels when a subdivided mesh is not clean: a triangle nearly edge-on to its
-    // ellipsoid, fine in the coarse mesh, can have a child that is not (the ellipsoid's
-    // normal turns across it).
     for levels in (1..=options.subdivision_levels(budget)).rev() {
         let coarse_options = RemeshOptions {
             vertices: Some(budget.div_ceil(4usize.pow(levels))),
@@ -196,7 +194,7 @@ pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshe
             break;
         };
         if !coarse.check.is_clean() {
-            break;
+            continue;
         }
         match subdivide(rep, coarse, levels, options.max_vertices) {
             Ok(fine) if fine.check.is_clean() => return Ok(fine),

@@ -22,9 +22,13 @@
 //! is used.
 //!
 //! Both faces of an edge use its one new point, so a closed manifold mesh stays closed and
-//! manifold: V' = V + E, F' = 4F.
+//! manifold: V' = V + E, F' = 4F, except where a face would get a child turned against its
+//! ellipsoid even with chord midpoints (a face nearly edge-on to it, whose normal turns
+//! across the face): that face stays whole and its neighbours split only their other edges
+//! (red–green refinement). A clean coarse mesh (no flipped or degenerate triangle) thus gives
+//! a clean subdivided one.
 
-use super::assemble::{check_mesh, vertex_normals};
+use super::assemble::{check_mesh, vertex_normals, DEGENERATE_AREA};
 use super::refine::project_to_intersection;
 use super::{RemeshError, Remeshed};
 use crate::mesh::{Mesh, MAX_ELEMENTS};
@@ -124,10 +128,24 @@ fn split_faces(
             }
         }
     }
-    let children = |f: usize| {
-        let [a, b, c] = faces[f];
-        let [ab, bc, ca] = middles[f];
-        [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]
+    let nv = mesh.vertex_count();
+    // Whether each edge's new point is used (indexed by point − nv): edges stay whole around
+    // faces that cannot be split without turning a child over.
+    let mut split = vec![true; positions.len() - nv];
+    let is_split = |split: &[bool], v: u32| split.get(v as usize - nv).copied().unwrap_or(false);
+    // What check_mesh would count: a flipped or degenerate child.
+    let diagonal = mesh.bounding_box().map_or(0.0, |b| b.diagonal());
+    let min_doubled_area = 2.0 * DEGENERATE_AREA * diagonal * diagonal;
+    let turned = |positions: &[DVec3], split: &[bool], f: usize| {
+        let Some(e) = rep.ellipsoids.get(region_of(f) as usize) else {
+            return false;
+        };
+        let cut = middles[f].map(|m| is_split(split, m).then_some(m));
+        children(faces[f], cut).iter().flatten().any(|child| {
+            let [p, q, r] = child.map(|v| positions[v as usize]);
+            let n = (q - p).cross(r - p);
+            n.length() <= min_doubled_area || n.dot(e.normal((p + q + r) / 3.0)) <= 0.0
+        })
     };
     // Where a new point turns a child against its ellipsoid (a strongly curved spot, or
     // offsets that disagree), the face's new points go back to the chord midpoints: its
@@ -136,14 +154,7 @@ fn split_faces(
     for _ in 0..REPAIR_ROUNDS {
         let mut moved = false;
         for f in 0..faces.len() {
-            let Some(e) = rep.ellipsoids.get(region_of(f) as usize) else {
-                continue;
-            };
-            let turned = children(f).iter().any(|child| {
-                let [p, q, r] = child.map(|v| positions[v as usize]);
-                (q - p).cross(r - p).dot(e.normal((p + q + r) / 3.0)) <= 0.0
-            });
-            if !turned {
+            if !turned(&positions, &split, f) {
                 continue;
             }
             let face = faces[f];
@@ -161,13 +172,91 @@ fn split_faces(
             break;
         }
     }
+    // Where even chord midpoints turn a child (a face nearly edge-on to its ellipsoid, whose
+    // normal turns across it), the face is left whole and its neighbours split only the
+    // edges they do not share with it (red–green refinement), until no child is turned. The
+    // set of whole edges only grows, and with every edge whole the faces are the coarse
+    // ones, which are sound: this ends, with a mesh as clean as the coarse one.
+    let mut queue: Vec<usize> = (0..faces.len()).rev().collect();
+    let mut queued = vec![true; faces.len()];
+    while let Some(f) = queue.pop() {
+        queued[f] = false;
+        if !turned(&positions, &split, f) {
+            continue;
+        }
+        for (i, &m) in middles[f].iter().enumerate() {
+            let slot = m as usize - nv;
+            if !split[slot] {
+                continue;
+            }
+            split[slot] = false;
+            if let Some((g, _)) = topology.across(f, i) {
+                let g = g as usize;
+                if !queued[g] {
+                    queued[g] = true;
+                    queue.push(g);
+                }
+            }
+        }
+    }
+    // Only the new points in use are kept, in order.
+    let mut renumber = vec![u32::MAX; split.len()];
+    let mut kept = nv;
+    for (slot, &used) in split.iter().enumerate() {
+        if used {
+            positions[kept] = positions[nv + slot];
+            renumber[slot] = kept as u32;
+            kept += 1;
+        }
+    }
+    positions.truncate(kept);
     let mut new_faces = Vec::with_capacity(faces.len() * 4);
     let mut new_regions = Vec::with_capacity(faces.len() * 4);
-    for f in 0..faces.len() {
-        new_faces.extend(children(f));
-        new_regions.extend([region_of(f); 4]);
+    for (f, &face) in faces.iter().enumerate() {
+        let cut = middles[f].map(|m| {
+            let slot = m as usize - nv;
+            split[slot].then_some(renumber[slot])
+        });
+        for child in children(face, cut).into_iter().flatten() {
+            new_faces.push(child);
+            new_regions.push(region_of(f));
+        }
     }
     (positions, new_faces, new_regions)
+}
+
+/// The triangles `face` is split into when its edges with a new point (`cut[i]` on edge i,
+/// from corner i to corner i + 1) are split: four with three, three with two, two with one,
+/// the face itself with none; all oriented as the face.
+fn children(face: [u32; 3], cut: [Option<u32>; 3]) -> [Option<[u32; 3]>; 4] {
+    let [a, b, c] = face;
+    match cut {
+        [Some(ab), Some(bc), Some(ca)] => [
+            Some([a, ab, ca]),
+            Some([ab, b, bc]),
+            Some([ca, bc, c]),
+            Some([ab, bc, ca]),
+        ],
+        [None, None, None] => [Some(face), None, None, None],
+        _ => {
+            // Rotate so that the corners are (u, v, w) with edge u→v the first whole edge
+            // after a cut one.
+            let k = (0..3)
+                .find(|&k| cut[k].is_none() && cut[(k + 2) % 3].is_some())
+                .unwrap_or(0);
+            let (u, v, w) = (face[k], face[(k + 1) % 3], face[(k + 2) % 3]);
+            let (vw, wu) = (cut[(k + 1) % 3], cut[(k + 2) % 3]);
+            match (vw, wu) {
+                (Some(vw), Some(wu)) => {
+                    [Some([vw, w, wu]), Some([u, v, vw]), Some([u, vw, wu]), None]
+                }
+                (None, Some(wu)) => [Some([u, v, wu]), Some([v, w, wu]), None, None],
+                // Unreachable: k is chosen with cut[k + 2] set.
+                (Some(vw), None) => [Some([u, v, vw]), Some([u, vw, w]), None, None],
+                (None, None) => [Some(face), None, None, None],
+            }
+        }
+    }
 }
 
 /// Most rounds of moving new points back to their chords in [`split_faces`].
@@ -194,5 +283,54 @@ fn between(a: DVec3, b: DVec3, project: impl Fn(DVec3) -> Option<DVec3>) -> DVec
             }
         }
         _ => mid,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every pattern of cut edges tiles the face: the children are counter-clockwise, their
+    /// areas add up to the face's, and each cut edge's point is used.
+    #[test]
+    fn children_tile_the_face_in_every_pattern() {
+        // Corners 0, 1, 2 and the midpoints of edges 0 (0→1), 1 (1→2), 2 (2→0) as 3, 4, 5.
+        let p = [
+            glam::DVec2::new(0.0, 0.0),
+            glam::DVec2::new(4.0, 0.0),
+            glam::DVec2::new(1.0, 3.0),
+        ];
+        let mut points = p.to_vec();
+        for i in 0..3 {
+            points.push(0.5 * (p[i] + p[(i + 1) % 3]));
+        }
+        let area = |t: [u32; 3]| {
+            let [a, b, c] = t.map(|v| points[v as usize]);
+            0.5 * (b - a).perp_dot(c - a)
+        };
+        let whole = area([0, 1, 2]);
+        for pattern in 0..8u32 {
+            let cut: [Option<u32>; 3] =
+                std::array::from_fn(|i| (pattern >> i & 1 == 1).then_some(3 + i as u32));
+            let kids: Vec<[u32; 3]> = children([0, 1, 2], cut).into_iter().flatten().collect();
+            assert_eq!(
+                kids.len(),
+                1 + pattern.count_ones() as usize,
+                "{pattern:03b}"
+            );
+            let total: f64 = kids.iter().map(|&t| area(t)).sum();
+            assert!((total - whole).abs() < 1e-12, "{pattern:03b}: {total}");
+            for &t in &kids {
+                assert!(area(t) > 0.0, "{pattern:03b}: {t:?}");
+            }
+            for (i, c) in cut.iter().enumerate() {
+                if let Some(m) = c {
+                    assert!(
+                        kids.iter().any(|t| t.contains(m)),
+                        "{pattern:03b}: edge {i}"
+                    );
+                }
+            }
+        }
     }
 }
