@@ -16,6 +16,8 @@
 use super::RemeshError;
 use crate::ellipsoid::{Ellipsoid, Sign};
 use glam::{DQuat, DVec2, DVec3};
+use std::cmp::Ordering;
+use std::collections::BinaryHeap;
 
 /// Number of evenly spread (Fibonacci) directions tried as poles, besides the loops' own
 /// centres and their antipodes.
@@ -387,6 +389,13 @@ impl SphereEdges {
         SphereEdges { edges }
     }
 
+    /// Every `step`-th edge (the nearest of them is no nearer than the nearest of all).
+    fn every(&self, step: usize) -> SphereEdges {
+        SphereEdges {
+            edges: self.edges.iter().step_by(step.max(1)).copied().collect(),
+        }
+    }
+
     /// Angular distance from `c` to the nearest edge.
     ///
     /// The minimum is taken over squared chord lengths, which grow with the angle, and
@@ -491,6 +500,42 @@ fn decimate_loops(loops: &[Vec<DVec3>], budget: usize) -> Vec<Vec<DVec3>> {
         .collect()
 }
 
+/// Edges a pole candidate's first, upper-bound score is taken against ([`choose_pole`]).
+const BOUND_EDGES: usize = 48;
+
+/// A pole candidate in [`choose_pole`]'s best-first ranking: by score, then bounds before
+/// scores (a bound equal to a score may hide a better candidate), then the candidates'
+/// order.
+#[derive(Debug, Clone, Copy)]
+struct Ranked {
+    score: f64,
+    bound: bool,
+    index: usize,
+}
+
+impl PartialEq for Ranked {
+    fn eq(&self, other: &Self) -> bool {
+        self.cmp(other) == Ordering::Equal
+    }
+}
+
+impl Eq for Ranked {}
+
+impl PartialOrd for Ranked {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for Ranked {
+    fn cmp(&self, other: &Self) -> Ordering {
+        self.score
+            .total_cmp(&other.score)
+            .then(self.bound.cmp(&other.bound))
+            .then(other.index.cmp(&self.index))
+    }
+}
+
 /// The pole outside the region farthest from its boundary, and that distance (section 5.1).
 ///
 /// Candidates are ranked by their distance to a subsample of the boundary (all of it up to
@@ -514,12 +559,36 @@ fn choose_pole(ellipsoid: &Ellipsoid, loops: &[Vec<DVec3>]) -> Option<(DVec3, f6
             candidates.push(-c);
         }
     }
-    let mut scored: Vec<(f64, DVec3)> = candidates.into_iter().map(|c| (score(c), c)).collect();
-    // Stable: ties keep the candidates' order, so the choice is deterministic.
-    scored.sort_by(|a, b| b.0.total_cmp(&a.0));
-    let (mut best_score, mut best, mut best_distance) = scored
-        .into_iter()
-        .find_map(|(s, c)| accept(c).map(|d| (s, c, d)))?;
+    // The first acceptable candidate by decreasing score (ties in the candidates' order).
+    // Best-first: every candidate starts with an upper bound of its score, its distance to
+    // a sample of the edges, and is scored against all of them only when it comes on top;
+    // a scored candidate on top is ahead of every other (ties go to bounds, to be scored
+    // first), so only the few candidates near the top are ever scored in full.
+    let sample = coarse.every(coarse.edges.len().div_ceil(BOUND_EDGES));
+    let mut ranked: BinaryHeap<Ranked> = candidates
+        .iter()
+        .enumerate()
+        .map(|(index, &c)| Ranked {
+            score: sample.distance(c),
+            bound: true,
+            index,
+        })
+        .collect();
+    let mut first = None;
+    while let Some(top) = ranked.pop() {
+        let c = candidates[top.index];
+        if top.bound {
+            ranked.push(Ranked {
+                score: score(c),
+                bound: false,
+                ..top
+            });
+        } else if let Some(d) = accept(c) {
+            first = Some((top.score, c, d));
+            break;
+        }
+    }
+    let (mut best_score, mut best, mut best_distance) = first?;
     // Pattern search: move the pole away from the boundary while it improves.
     let mut step = 0.5 * (4.0 * std::f64::consts::PI / POLE_CANDIDATES as f64).sqrt();
     for _ in 0..40 {
