@@ -1137,15 +1137,20 @@ fn join(
             max: max_vertices,
         });
     }
-    let normals = vertex_normals(rep, &positions, &faces, &face_regions);
-    let mesh = Mesh::new(positions, faces)?;
+    Ok(measured(rep, Mesh::new(positions, faces)?, face_regions))
+}
+
+/// A remeshed representation from its mesh and face regions: the analytic vertex normals
+/// ([`vertex_normals`]) and the check ([`check_mesh`]) added.
+pub(super) fn measured(rep: &Representation, mesh: Mesh, face_regions: Vec<u32>) -> Remeshed {
+    let normals = vertex_normals(rep, mesh.positions(), mesh.faces(), &face_regions);
     let check = check_mesh(rep, &mesh, &face_regions);
-    Ok(Remeshed {
+    Remeshed {
         mesh,
         normals,
         face_regions,
         check,
-    })
+    }
 }
 
 /// Removes vertices no face uses, renumbering the rest in order.
@@ -1175,7 +1180,7 @@ fn drop_unused(positions: Vec<DVec3>, mut faces: Vec<[u32; 3]>) -> (Vec<DVec3>, 
 
 /// Per vertex, the signed ellipsoid normals of the regions it touches, averaged and
 /// normalised (faces are grouped by region, so each region counts once per vertex).
-pub(super) fn vertex_normals(
+fn vertex_normals(
     rep: &Representation,
     positions: &[DVec3],
     faces: &[[u32; 3]],

@@ -28,7 +28,7 @@
 //! (red–green refinement). A clean coarse mesh (no flipped or degenerate triangle) thus gives
 //! a clean subdivided one.
 
-use super::assemble::{check_mesh, vertex_normals, DEGENERATE_AREA};
+use super::assemble::{measured, DEGENERATE_AREA};
 use super::refine::project_to_intersection;
 use super::{RemeshError, Remeshed};
 use crate::mesh::{Mesh, MAX_ELEMENTS};
@@ -39,7 +39,7 @@ use glam::DVec3;
 const UNSET: u32 = u32::MAX;
 
 /// Splits every triangle of `coarse` into four, `levels` times (see the module doc), and
-/// checks the result ([`check_mesh`]). Deterministic.
+/// checks the result ([`super::assemble::check_mesh`]). Deterministic.
 ///
 /// Errors: [`RemeshError::TooManyVertices`] when the result would exceed `max_vertices` (or
 /// the mesh's index range); [`RemeshError::Mesh`] if the result is refused (a bug).
@@ -76,14 +76,7 @@ pub fn subdivide(
         mesh = Mesh::new(positions, faces)?;
         face_regions = regions;
     }
-    let normals = vertex_normals(rep, mesh.positions(), mesh.faces(), &face_regions);
-    let check = check_mesh(rep, &mesh, &face_regions);
-    Ok(Remeshed {
-        mesh,
-        normals,
-        face_regions,
-        check,
-    })
+    Ok(measured(rep, mesh, face_regions))
 }
 
 /// One level: the positions (old ones first, then one per edge in order of first use), the
