@@ -554,6 +554,61 @@ fn subdivision_meets_large_budgets_like_vertex_addition() {
     }
 }
 
+/// A real file whose adaptive mesh at a sixteenth of 500 000 vertices has faces nearly
+/// edge-on to their ellipsoids (the bunny at K = 8, volume mode, as in the paper): splitting
+/// them into four flips a child even at chord midpoints, so they stay whole and their
+/// neighbours split around them (red–green). The two-level subdivision is clean, and it is
+/// what the decoder returns (before red–green it fell back to one level).
+#[test]
+fn subdivision_keeps_a_clean_coarse_mesh_clean() {
+    let Some(dir) = common::shared_dir() else {
+        eprintln!("../shared/meshes not found: skipped");
+        return;
+    };
+    let mesh = read_mesh(&dir.join("bunny.obj"), &ImportOptions::default())
+        .unwrap()
+        .mesh;
+    let settings = EncodeSettings {
+        segment: SegmentOptions {
+            regions: RegionCount::Fixed(8),
+            mode: ellip::segment::Mode::Volume,
+            ..SegmentOptions::default()
+        },
+        ..EncodeSettings::default()
+    };
+    let bytes = encode_mesh(&mesh, &settings, &mut |_| {}).unwrap().bytes;
+    let rep = decode(&bytes, &Limits::default()).unwrap();
+    let budget = 500_000;
+    assert_eq!(RemeshOptions::default().subdivision_levels(budget), 2);
+    let coarse = remesh(
+        &rep,
+        &RemeshOptions {
+            subdivision: false,
+            ..options(budget / 16, Scheme::Adaptive)
+        },
+    )
+    .unwrap();
+    assert_clean(&coarse, "coarse");
+    let (v, f) = (coarse.mesh.vertex_count(), coarse.mesh.face_count());
+    let fine = subdivide(&rep, coarse, 2, usize::MAX).unwrap();
+    assert_clean(&fine, "subdivided");
+    assert_closed(&fine, "subdivided");
+    // Some faces stayed whole: fewer than sixteen triangles per coarse one.
+    assert!(
+        fine.mesh.face_count() < 16 * f,
+        "{} of {}",
+        fine.mesh.face_count(),
+        16 * f
+    );
+    assert!(
+        fine.mesh.vertex_count() > 15 * v,
+        "{}",
+        fine.mesh.vertex_count()
+    );
+    let decoded = remesh(&rep, &options(budget, Scheme::Adaptive)).unwrap();
+    assert_eq!(decoded.mesh.faces(), fine.mesh.faces());
+}
+
 /// Real meshes whose segmentation has nearly flat or needle-like regions (radii in the
 /// thousands), whose estimated area is far too large: the adaptive scheme still spends its
 /// budget (it lowers the minimum spacing) instead of stopping at a fraction of it (spot at
@@ -868,4 +923,40 @@ fn ellip_convert_goes_through_ellip() {
     ]);
     assert_eq!(out.status.code(), Some(1));
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `--no-subdivision` places every vertex by vertex addition: at 40 000 vertices both ways
+/// decode clean and closed, to different meshes.
+#[test]
+fn ellip_decode_can_turn_subdivision_off() {
+    let dir = scratch("no-subdivision");
+    let mesh = source("blob1.obj");
+    let (bytes, _) = encode(&mesh, blob_ellipsoids("blob1.obj"));
+    let input = dir.join("blob1.ellip");
+    std::fs::write(&input, &bytes).unwrap();
+    let mut written = Vec::new();
+    for extra in [None, Some("--no-subdivision")] {
+        let output = dir.join(format!("blob1-{}.ply", extra.is_some()));
+        let mut args = vec![
+            "decode",
+            input.to_str().unwrap(),
+            "-o",
+            output.to_str().unwrap(),
+            "--vertices",
+            "40000",
+            "--json",
+        ];
+        args.extend(extra);
+        let out = ellip(&args);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(v["closed"], true, "{extra:?}");
+        assert_eq!(v["flipped_triangles"], 0, "{extra:?}");
+        written.push(std::fs::read(&output).unwrap());
+    }
+    assert_ne!(written[0], written[1]);
 }
