@@ -1,12 +1,13 @@
-//! Raw bytes → `format::decode` with small limits → `remesh` with a small vertex budget: every
-//! file the decoder accepts must remesh to a mesh or to a typed error, never panic or hang
-//! (issue 6, item 9).
+//! Raw bytes → `format::decode` with small limits → `remesh` with a small vertex budget, then
+//! one level of `remesh::subdivide`: every file the decoder accepts must remesh to a mesh or
+//! to a typed error, never panic or hang (issue 6, item 9).
 //!
 //! As in the `decode` target, the bytes are tried as given and with their CRC-32 fields
 //! recomputed, so that mutations reach the geometry instead of stopping at a checksum.
 #![no_main]
 
 use ellip::format::{self, Limits};
+use ellip::remesh::subdivide::subdivide;
 use ellip::remesh::{remesh, RemeshOptions, Scheme};
 use libfuzzer_sys::fuzz_target;
 
@@ -49,11 +50,19 @@ fn check(data: &[u8]) {
         tolerance: None,
         scheme,
         max_vertices: 100_000,
+        subdivision: true,
     };
     if let Ok(out) = remesh(&rep, &options) {
         assert_eq!(out.normals.len(), out.mesh.vertex_count());
         assert_eq!(out.face_regions.len(), out.mesh.face_count());
         assert!(out.normals.iter().all(|n| n.is_finite()));
+        // Subdivision (used from 40 000 vertices, too slow to reach here) on what the
+        // hostile file meshed to.
+        if let Ok(fine) = subdivide(&rep, out, 1, options.max_vertices) {
+            assert_eq!(fine.normals.len(), fine.mesh.vertex_count());
+            assert_eq!(fine.face_regions.len(), fine.mesh.face_count());
+            assert!(fine.normals.iter().all(|n| n.is_finite()));
+        }
     }
 }
 
