@@ -336,8 +336,9 @@ impl Plan<'_> {
             ..
         } = *self;
         let mut refined = refine_arcs(rep, settings);
+        let mut charts = Vec::new();
         if untangle_arcs {
-            untangle(rep, &mut refined.arcs, &refined.points, self.projection);
+            charts = untangle(rep, &mut refined.arcs, &refined.points, self.projection);
         }
         let mut pool = Pool::new(&refined.points);
         let mut pieces = Vec::with_capacity(rep.region_count());
@@ -394,12 +395,20 @@ impl Plan<'_> {
                 .map(|l| l.iter().map(|&v| pool.position(v)).collect())
                 .collect();
             let surface = chart_surface(ellipsoid, &loop_points);
-            let chart = match RegionChart::with_projection(
-                region,
-                &surface,
-                &loop_points,
-                projection_onto(&surface, ellipsoid, self.projection),
-            ) {
+            // The chart untangling last made of the same loops, if any: the same chart.
+            let known = charts
+                .get_mut(r)
+                .and_then(Option::take)
+                .filter(|(l, _)| *l == loop_points)
+                .map(|(_, chart)| Ok(chart));
+            let chart = match known.unwrap_or_else(|| {
+                RegionChart::with_projection(
+                    region,
+                    &surface,
+                    &loop_points,
+                    projection_onto(&surface, ellipsoid, self.projection),
+                )
+            }) {
                 Ok(chart) => chart,
                 Err(RemeshError::Region { region, .. }) if faults.is_some() => {
                     if let Some(f) = faults.as_deref_mut() {
@@ -446,20 +455,21 @@ fn untangle(
     chains: &mut [Vec<u32>],
     points: &[DVec3],
     projection: Projection,
-) {
+) -> Vec<KnownChart> {
     // Regions whose loops changed since they were last looked at: the others would find
     // the same crossings, whose drops were refused.
     let mut changed = vec![true; rep.cycles.len()];
+    let mut charts: Vec<KnownChart> = vec![None; rep.cycles.len()];
     for _ in 0..UNTANGLE_ROUNDS {
         // (arc, position in its chain) of the points to drop.
         let mut drop: Vec<(u32, usize)> = Vec::new();
         for (r, cycles) in rep.cycles.iter().enumerate() {
             if !cycles.is_empty() && changed[r] {
-                region_crossings(r as u32, rep, chains, points, projection, &mut drop);
+                charts[r] = region_crossings(r as u32, rep, chains, points, projection, &mut drop);
             }
         }
         if drop.is_empty() {
-            return;
+            return charts;
         }
         changed.fill(false);
         drop.sort_unstable();
@@ -486,7 +496,11 @@ fn untangle(
             }
         }
     }
+    charts
 }
+
+/// A region's loops and the chart [`region_crossings`] made of them.
+type KnownChart = Option<(Vec<Vec<DVec3>>, RegionChart)>;
 
 /// Where a loop point sits in the refined arcs, if it may be dropped: (arc, position).
 type Droppable = Option<(u32, usize)>;
@@ -499,12 +513,12 @@ fn region_crossings(
     points: &[DVec3],
     projection: Projection,
     drop: &mut Vec<(u32, usize)>,
-) {
+) -> KnownChart {
     let (Some(e), Some(cycles)) = (
         rep.ellipsoids.get(region as usize),
         rep.cycles.get(region as usize),
     ) else {
-        return;
+        return None;
     };
     // Each loop vertex with the (arc, position) it can be dropped as, if any.
     let mut loops: Vec<Vec<(DVec3, Droppable)>> = Vec::new();
@@ -535,7 +549,7 @@ fn region_crossings(
     }
     let total: usize = loops.iter().map(Vec::len).sum();
     if loops.is_empty() || total > UNTANGLE_MAX_POINTS {
-        return;
+        return None;
     }
     let loop_points: Vec<Vec<DVec3>> = loops
         .iter()
@@ -548,7 +562,7 @@ fn region_crossings(
         &loop_points,
         projection_onto(&surface, e, projection),
     ) else {
-        return;
+        return None;
     };
     // Segments in the plane: (a, b, which point to drop if it crosses).
     let mut segments: Vec<(glam::DVec2, glam::DVec2, Droppable)> = Vec::new();
@@ -577,6 +591,7 @@ fn region_crossings(
             }
         }
     }
+    Some((loop_points, chart))
 }
 
 /// Whether two segments cross at a point inside both (shared endpoints do not count).
