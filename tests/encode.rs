@@ -243,14 +243,10 @@ fn the_encoder_checks_its_file_against_the_decoder() {
 /// the file it writes decodes clean.
 #[test]
 fn real_meshes_with_unchartable_regions_are_split_until_they_decode_clean() {
-    let Some(dir) = common::shared_dir() else {
-        eprintln!("../shared/meshes not found: skipped");
-        return;
-    };
     for name in ["penguin", "horse"] {
-        let mesh = read_mesh(&dir.join(format!("{name}.obj")), &ImportOptions::default())
-            .unwrap()
-            .mesh;
+        let Some(mesh) = common::shared_mesh(name) else {
+            return;
+        };
         let unchecked = EncodeSettings {
             verify: false,
             ..settings(12)
@@ -287,13 +283,9 @@ fn real_meshes_with_unchartable_regions_are_split_until_they_decode_clean() {
 /// to decode unsplit ("a boundary edge is used twice"), and one of its split rounds decodes.
 #[test]
 fn a_file_that_decodes_is_kept_over_one_that_does_not() {
-    let Some(dir) = common::shared_dir() else {
-        eprintln!("../shared/meshes not found: skipped");
+    let Some(mesh) = common::shared_mesh("teddy") else {
         return;
     };
-    let mesh = read_mesh(&dir.join("teddy.obj"), &ImportOptions::default())
-        .unwrap()
-        .mesh;
     let options = ellip::remesh::RemeshOptions::default();
     let unchecked = EncodeSettings {
         verify: false,

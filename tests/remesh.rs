@@ -60,6 +60,15 @@ fn options(vertices: usize, scheme: Scheme) -> RemeshOptions {
     }
 }
 
+/// Adaptive options at `vertices` with every vertex placed by vertex addition (no
+/// subdivision).
+fn by_vertex_addition(vertices: usize) -> RemeshOptions {
+    RemeshOptions {
+        subdivision: false,
+        ..options(vertices, Scheme::Adaptive)
+    }
+}
+
 fn diagonal(mesh: &Mesh) -> f64 {
     mesh.bounding_box().unwrap().diagonal()
 }
@@ -512,28 +521,14 @@ fn subdivision_meets_large_budgets_like_vertex_addition() {
         let mesh = source(name);
         let (_, rep) = encode(&mesh, blob_ellipsoids(name));
         let fast = remesh(&rep, &options(budget, Scheme::Adaptive)).unwrap();
-        let slow = remesh(
-            &rep,
-            &RemeshOptions {
-                subdivision: false,
-                ..options(budget, Scheme::Adaptive)
-            },
-        )
-        .unwrap();
+        let slow = remesh(&rep, &by_vertex_addition(budget)).unwrap();
         assert_clean(&fast, name);
         assert_closed(&fast, name);
         let n = fast.mesh.vertex_count();
         assert!(n.abs_diff(budget) * 100 <= budget, "{name}: {n} vertices");
         // It is the adaptive mesh at a quarter of the budget, subdivided once: every coarse
         // edge gets a new point (V + E vertices) unless a face had to stay whole.
-        let coarse = remesh(
-            &rep,
-            &RemeshOptions {
-                subdivision: false,
-                ..options(budget / 4, Scheme::Adaptive)
-            },
-        )
-        .unwrap();
+        let coarse = remesh(&rep, &by_vertex_addition(budget / 4)).unwrap();
         let (v, e) = (
             coarse.mesh.vertex_count(),
             coarse.mesh.topology().edge_count(),
@@ -561,13 +556,9 @@ fn subdivision_meets_large_budgets_like_vertex_addition() {
 /// what the decoder returns (before red–green it fell back to one level).
 #[test]
 fn subdivision_keeps_a_clean_coarse_mesh_clean() {
-    let Some(dir) = common::shared_dir() else {
-        eprintln!("../shared/meshes not found: skipped");
+    let Some(mesh) = common::shared_mesh("bunny") else {
         return;
     };
-    let mesh = read_mesh(&dir.join("bunny.obj"), &ImportOptions::default())
-        .unwrap()
-        .mesh;
     let settings = EncodeSettings {
         segment: SegmentOptions {
             regions: RegionCount::Fixed(8),
@@ -580,14 +571,7 @@ fn subdivision_keeps_a_clean_coarse_mesh_clean() {
     let rep = decode(&bytes, &Limits::default()).unwrap();
     let budget = 500_000;
     assert_eq!(RemeshOptions::default().subdivision_levels(budget), 2);
-    let coarse = remesh(
-        &rep,
-        &RemeshOptions {
-            subdivision: false,
-            ..options(budget / 16, Scheme::Adaptive)
-        },
-    )
-    .unwrap();
+    let coarse = remesh(&rep, &by_vertex_addition(budget / 16)).unwrap();
     assert_clean(&coarse, "coarse");
     let (v, f) = (coarse.mesh.vertex_count(), coarse.mesh.face_count());
     let fine = subdivide(&rep, coarse, 2, usize::MAX).unwrap();
@@ -615,14 +599,10 @@ fn subdivision_keeps_a_clean_coarse_mesh_clean() {
 /// K = 18 decoded to 518 of 2 930 vertices, igea_small to 911 of 8 268).
 #[test]
 fn the_budget_is_spent_where_the_area_estimate_is_too_large() {
-    let Some(dir) = common::shared_dir() else {
-        eprintln!("../shared/meshes not found: skipped");
-        return;
-    };
     for name in ["spot", "igea_small"] {
-        let mesh = read_mesh(&dir.join(format!("{name}.obj")), &ImportOptions::default())
-            .unwrap()
-            .mesh;
+        let Some(mesh) = common::shared_mesh(name) else {
+            return;
+        };
         let (_, rep) = encode(&mesh, 18);
         let budget = mesh.vertex_count();
         let out = remesh(&rep, &RemeshOptions::default()).unwrap();

@@ -541,15 +541,18 @@ fn splitting_a_region_cuts_only_its_faces() {
     let before = segment_with(&mesh, &metric, &options, &mut |_| {}).unwrap();
     let host = 0u32;
     let whole = |region| Split { region, cut: None };
-    let after = split_regions(
-        &mesh,
-        &metric,
-        &options,
-        &before,
-        &[whole(host)],
-        &mut |_| {},
-    )
-    .unwrap();
+    let split_host = || {
+        split_regions(
+            &mesh,
+            &metric,
+            &options,
+            &before,
+            &[whole(host)],
+            &mut |_| {},
+        )
+        .unwrap()
+    };
+    let after = split_host();
     assert_eq!(after.region_count(), before.region_count() + 1);
     check_partition(&mesh, &after);
     // Faces outside the host keep their region; the new region lies inside the host.
@@ -572,15 +575,7 @@ fn splitting_a_region_cuts_only_its_faces() {
     };
     assert!(error_of(&after, &[host, new]) <= 1.05 * error_of(&before, &[host]));
     // Deterministic.
-    let again = split_regions(
-        &mesh,
-        &metric,
-        &options,
-        &before,
-        &[whole(host)],
-        &mut |_| {},
-    )
-    .unwrap();
+    let again = split_host();
     assert_eq!(after.labels, again.labels);
     // Along a given plane: the new region starts on the plane's positive side.
     let faces: Vec<usize> = (0..mesh.face_count())

@@ -38,8 +38,8 @@ use glam::DVec3;
 /// Marks an edge whose new point is not made yet.
 const UNSET: u32 = u32::MAX;
 
-/// Splits every triangle of `coarse` into four, `levels` times (see the module doc), and
-/// checks the result ([`super::assemble::check_mesh`]). Deterministic.
+/// Splits every triangle of `coarse` into four (fewer around faces left whole), `levels`
+/// times (see the module doc), and checks the result ([`super::assemble::check_mesh`]). Deterministic.
 ///
 /// Errors: [`RemeshError::TooManyVertices`] when the result would exceed `max_vertices` (or
 /// the mesh's index range); [`RemeshError::Mesh`] if the result is refused (a bug).
@@ -49,20 +49,14 @@ pub fn subdivide(
     levels: u32,
     max_vertices: usize,
 ) -> Result<Remeshed, RemeshError> {
+    if levels == 0 {
+        return Ok(coarse);
+    }
     let Remeshed {
         mut mesh,
-        normals,
         mut face_regions,
-        check,
+        ..
     } = coarse;
-    if levels == 0 {
-        return Ok(Remeshed {
-            mesh,
-            normals,
-            face_regions,
-            check,
-        });
-    }
     for _ in 0..levels {
         let t = mesh.topology();
         let needed = mesh.vertex_count() + t.edge_count();
@@ -79,9 +73,9 @@ pub fn subdivide(
     Ok(measured(rep, mesh, face_regions))
 }
 
-/// One level: the positions (old ones first, then one per edge in order of first use), the
-/// faces (four per face, in order: the three corners', then the middle one) and their
-/// regions.
+/// One level: the positions (old ones first, then the new points in use, in order of their
+/// edges' first use), the faces ([`children`] of each face in turn: four, or fewer next to
+/// a face left whole) and their regions.
 fn split_faces(
     rep: &Representation,
     mesh: &Mesh,

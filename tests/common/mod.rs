@@ -25,6 +25,18 @@ pub fn shared_dir() -> Option<PathBuf> {
     }
 }
 
+/// The real mesh `name` (`name.obj` in [`shared_dir`]), imported with the default options;
+/// `None` — saying so — where the folder is absent.
+pub fn shared_mesh(name: &str) -> Option<ellip::Mesh> {
+    let path = shared_dir()?.join(format!("{name}.obj"));
+    let imported = ellip::import::read_mesh(&path, &ellip::import::ImportOptions::default());
+    Some(
+        imported
+            .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+            .mesh,
+    )
+}
+
 /// The real meshes of [`shared_dir`], sorted.
 pub fn shared_meshes() -> Option<Vec<PathBuf>> {
     shared_dir().map(|dir| obj_files(&dir))
