@@ -458,6 +458,45 @@ fn the_torus_decodes_to_a_closed_torus() {
     assert!(rms < 0.005 && max < 0.025, "{rms} {max}");
 }
 
+/// A boundary stored off its ellipsoids (as on real meshes, where the fits miss the
+/// boundary): the two-hemisphere file with its equator moved out by 2 %, 5 % and 10 % of the
+/// radii. The paper's scheme puts every interior vertex on the ellipsoid, so the triangles
+/// at the equator climb to it within an edge length and stand up as the budget grows (the
+/// decoder before the blend: up to 89.9° off the ellipsoid's normal at 20 000 vertices).
+/// With the boundary's heights blended in ([`ellip::remesh::surface`]) no triangle leans
+/// more than 30° off (the blend's slope is at most 27°; measured 23.7–27.8°), at any budget,
+/// and the equator points stay where the file put them.
+#[test]
+fn boundaries_off_their_ellipsoids_blend_in_without_standing_triangles() {
+    for scale in [1.02, 1.05, 1.1] {
+        let mut rep = ellip::format::sample::two_hemispheres();
+        let e = rep.ellipsoids[0];
+        for p in &mut rep.points {
+            *p = e.center + (*p - e.center) * scale;
+        }
+        for budget in [2_000, 20_000, 80_000] {
+            let context = format!("scale {scale}, {budget} vertices");
+            let out = remesh(&rep, &options(budget, Scheme::Adaptive)).unwrap();
+            assert_clean(&out, &context);
+            assert_closed(&out, &context);
+            let mut worst: f64 = 0.0;
+            for f in 0..out.mesh.face_count() {
+                let n = out.mesh.face_normal(f);
+                let cos = n.dot(e.normal(out.mesh.face_centroid(f))).clamp(-1.0, 1.0);
+                worst = worst.max(cos.acos().to_degrees());
+            }
+            println!("{context}: worst lean {worst:.1}°");
+            assert!(worst < 30.0, "{context}: a triangle leans {worst}° off");
+            for p in &rep.points {
+                assert!(
+                    out.mesh.positions().contains(p),
+                    "{context}: boundary point {p} moved"
+                );
+            }
+        }
+    }
+}
+
 #[test]
 fn the_vertex_budget_is_honoured_within_one_percent() {
     let mesh = source("blob2.obj");
@@ -549,11 +588,12 @@ fn subdivision_meets_large_budgets_like_vertex_addition() {
     }
 }
 
-/// A real file whose adaptive mesh at a sixteenth of 500 000 vertices has faces nearly
-/// edge-on to their ellipsoids (the bunny at K = 8, volume mode, as in the paper): splitting
-/// them into four flips a child even at chord midpoints, so they stay whole and their
-/// neighbours split around them (red–green). The two-level subdivision is clean, and it is
-/// what the decoder returns (before red–green it fell back to one level).
+/// A real file (the bunny at K = 8, volume mode, as in the paper) at 500 000 vertices: its
+/// adaptive mesh at a sixteenth of the budget is clean, subdivided twice it stays clean and
+/// closed with about sixteen times the triangles, and that is what the decoder returns.
+/// (Before boundary heights were blended in, some of its coarse faces stood nearly edge-on
+/// to their ellipsoids and stayed whole under red–green refinement; red–green itself is
+/// tested in `remesh::subdivide`.)
 #[test]
 fn subdivision_keeps_a_clean_coarse_mesh_clean() {
     let Some(mesh) = common::shared_mesh("bunny") else {
@@ -577,9 +617,9 @@ fn subdivision_keeps_a_clean_coarse_mesh_clean() {
     let fine = subdivide(&rep, coarse, 2, usize::MAX).unwrap();
     assert_clean(&fine, "subdivided");
     assert_closed(&fine, "subdivided");
-    // Some faces stayed whole: fewer than sixteen triangles per coarse one.
+    // At most sixteen triangles per coarse one (fewer where faces stay whole).
     assert!(
-        fine.mesh.face_count() < 16 * f,
+        fine.mesh.face_count() <= 16 * f,
         "{} of {}",
         fine.mesh.face_count(),
         16 * f

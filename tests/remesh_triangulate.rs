@@ -4,6 +4,7 @@
 
 use ellip::ellipsoid::{Ellipsoid, Sign};
 use ellip::remesh::chart::RegionChart;
+use ellip::remesh::surface::RegionSurface;
 use ellip::remesh::triangulate::{
     triangulate_parametric, AdaptiveTriangulation, Corner, RegionInput, RegionMesh,
 };
@@ -12,9 +13,10 @@ use ellip::representation::Representation;
 use glam::{DQuat, DVec3};
 use std::collections::HashMap;
 
-/// A region's data owned together: boundary points, loops, chart.
+/// A region's data owned together: boundary points, loops, the surface (its chart's
+/// ellipsoid, no offsets).
 struct Region {
-    chart: RegionChart,
+    surface: RegionSurface,
     boundary: Vec<DVec3>,
     loops: Vec<Vec<u32>>,
 }
@@ -23,7 +25,7 @@ impl Region {
     fn input(&self) -> RegionInput<'_> {
         RegionInput {
             region: 0,
-            chart: &self.chart,
+            surface: &self.surface,
             boundary: &self.boundary,
             loops: &self.loops,
         }
@@ -70,7 +72,7 @@ fn cap(e: &Ellipsoid, theta: f64, n: usize) -> Region {
         lp.reverse();
     }
     Region {
-        chart: RegionChart::with_pole(e, DVec3::NEG_Z),
+        surface: RegionSurface::new(RegionChart::with_pole(e, DVec3::NEG_Z)),
         boundary,
         loops: vec![lp],
     }
@@ -87,7 +89,7 @@ fn annulus(e: &Ellipsoid, inner: f64, outer: f64, n: usize) -> Region {
         hole.reverse();
     }
     Region {
-        chart: RegionChart::with_pole(e, DVec3::NEG_Z),
+        surface: RegionSurface::new(RegionChart::with_pole(e, DVec3::NEG_Z)),
         boundary,
         loops: vec![outer_loop, hole],
     }
@@ -119,7 +121,7 @@ fn check_mesh(region: &Region, mesh: &RegionMesh) -> i64 {
 /// ellipsoid (between two ellipsoids, quantised), and an ear of three nearly collinear
 /// consecutive boundary points can face any way; the triangulator cannot change those.
 fn check_mesh_with(region: &Region, mesh: &RegionMesh, strict: bool) -> i64 {
-    let e = &region.chart.ellipsoid;
+    let e = &region.surface.chart.ellipsoid;
     assert!(!mesh.triangles.is_empty());
     let scale = e.radii.max_element();
     let mut directed: HashMap<(Corner, Corner), usize> = HashMap::new();
@@ -213,7 +215,7 @@ fn sampled_error(region: &Region, mesh: &RegionMesh) -> (f64, f64) {
         [0.0, 0.5, 0.5],
         [0.5, 0.0, 0.5],
     ];
-    let e = &region.chart.ellipsoid;
+    let e = &region.surface.chart.ellipsoid;
     let (mut max, mut sum, mut count) = (0.0f64, 0.0, 0usize);
     for t in &mesh.triangles {
         let [a, b, c] = corners(region, mesh, t);
@@ -304,21 +306,23 @@ fn insertion_stops_on_tolerance() {
     assert!(tri.worst_error().is_some_and(|w| w <= tolerance));
     let added = tri.added();
     let mesh = tri.finish();
-    // Away from the boundary every face centroid is within tolerance; faces touching it keep
-    // part of the boundary chords' sag (interior vertices cannot move a chord): at most 3× the
-    // largest chord midpoint's radial distance.
+    // Away from the boundary every face centroid is within tolerance of the surface (the
+    // decoder measures to the surface point at the face's chart centroid, no nearer than the
+    // closest one); faces touching it keep part of the boundary chords' sag (interior
+    // vertices cannot move a chord): at most 3× the largest chord midpoint's distance.
+    let distance = |p: DVec3| p.distance(e.closest_point(p));
     let lp = &region.loops[0];
     let sag = (0..lp.len())
         .map(|k| {
             let a = region.boundary[lp[k] as usize];
             let b = region.boundary[lp[(k + 1) % lp.len()] as usize];
-            e.radial_distance((a + b) / 2.0)
+            distance((a + b) / 2.0)
         })
         .fold(0.0, f64::max);
     let (mut inner, mut near) = (0.0f64, 0.0f64);
     for t in &mesh.triangles {
         let [a, b, c] = corners(&region, &mesh, t);
-        let d = e.radial_distance((a + b + c) / 3.0);
+        let d = distance((a + b + c) / 3.0);
         if t.iter().any(|c| matches!(c, Corner::Boundary(_))) {
             near = near.max(d);
         } else {
@@ -471,7 +475,7 @@ fn parametric_grid_is_a_valid_mesh_near_the_requested_size() {
         }
         // A cap around the grid's pole (local +z) and a cap on its equator.
         let side = Region {
-            chart: RegionChart::with_pole(&e, DVec3::NEG_X),
+            surface: RegionSurface::new(RegionChart::with_pole(&e, DVec3::NEG_X)),
             boundary: circle(&e, 0.8, 64)
                 .iter()
                 .map(|p| {
@@ -533,7 +537,7 @@ fn blob_regions() -> Vec<Region> {
                 .collect();
             let e = &rep.ellipsoids[r];
             let mut region = Region {
-                chart: RegionChart::new(r as u32, e, &points).unwrap(),
+                surface: RegionSurface::new(RegionChart::new(r as u32, e, &points).unwrap()),
                 boundary: rep.points.clone(),
                 loops,
             };
@@ -547,7 +551,7 @@ fn blob_regions() -> Vec<Region> {
             while AdaptiveTriangulation::new(&region.input(), 0.0).is_err() {
                 let Some(pole) = poles.next() else { break };
                 println!("region {r}: pole moved into a loop");
-                region.chart = RegionChart::with_pole(e, pole);
+                region.surface = RegionSurface::new(RegionChart::with_pole(e, pole));
             }
             region
         })

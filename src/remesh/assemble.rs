@@ -26,6 +26,7 @@
 use super::chart::{Projection, RegionChart};
 use super::refine::{refine_arcs, RefineSettings};
 use super::subdivide::subdivide;
+use super::surface::{Lift, RegionSurface};
 use super::triangulate::{
     boundary_crossing, triangulate_parametric, AdaptiveTriangulation, Corner, Crossing,
     RegionInput, RegionMesh,
@@ -302,6 +303,12 @@ impl Plan<'_> {
         untangle_arcs: bool,
     ) -> Result<Remeshed, RemeshError> {
         let (positions, pieces) = self.pieces(settings, untangle_arcs, None)?;
+        // Meshed on the ellipsoids with the boundary's offsets blended in near the boundary,
+        // over bands at least as wide as the target edge length.
+        let pieces: Vec<Piece> = pieces
+            .into_iter()
+            .map(|p| p.with_offsets(self.spacing))
+            .collect();
         let Plan {
             rep,
             options,
@@ -394,7 +401,7 @@ impl Plan<'_> {
                 .iter()
                 .map(|l| l.iter().map(|&v| pool.position(v)).collect())
                 .collect();
-            let surface = chart_surface(ellipsoid, &loop_points);
+            let stand_in = chart_surface(ellipsoid, &loop_points);
             // The chart untangling last made of the same loops, if any: the same chart.
             let known = charts
                 .get_mut(r)
@@ -404,9 +411,9 @@ impl Plan<'_> {
             let chart = match known.unwrap_or_else(|| {
                 RegionChart::with_projection(
                     region,
-                    &surface,
+                    &stand_in,
                     &loop_points,
-                    projection_onto(&surface, ellipsoid, self.projection),
+                    projection_onto(&stand_in, ellipsoid, self.projection),
                 )
             }) {
                 Ok(chart) => chart,
@@ -421,7 +428,14 @@ impl Plan<'_> {
                 }
                 Err(e) => return Err(e),
             };
-            pieces.push(Piece::new(region, chart, &loops, &pool.positions, area));
+            // Meshed on a stand-in, the points go back onto the region's ellipsoid.
+            let lift = if stand_in == *ellipsoid {
+                Lift::None
+            } else {
+                Lift::Radial(*ellipsoid)
+            };
+            let surface = RegionSurface::lifted(chart, lift);
+            pieces.push(Piece::new(region, surface, &loops, &pool.positions, area));
         }
         if pool.positions.len() > options.max_vertices {
             return Err(RemeshError::TooManyVertices {
@@ -681,7 +695,9 @@ fn without_repeats(ids: Vec<u32>) -> Vec<u32> {
 /// One piece to triangulate: a region, or half of a whole-ellipsoid region.
 struct Piece {
     region: u32,
-    chart: RegionChart,
+    /// The surface it is meshed on: its chart, how the chart's points reach the region's
+    /// ellipsoid, and (once [`Piece::with_offsets`] ran) the boundary's offsets.
+    surface: RegionSurface,
     /// Positions of the piece's boundary vertices, local numbering.
     boundary: Vec<DVec3>,
     /// Loops in local numbering.
@@ -690,15 +706,12 @@ struct Piece {
     global: Vec<u32>,
     /// Estimated area (model units²).
     area: f64,
-    /// When the chart is the view from beneath the region ([`Piece::view_from_beneath`]):
-    /// the point the interior points are lifted from onto the region's ellipsoid.
-    beneath: Option<DVec3>,
 }
 
 impl Piece {
     fn new(
         region: u32,
-        chart: RegionChart,
+        surface: RegionSurface,
         loops: &[Vec<u32>],
         positions: &[DVec3],
         area: f64,
@@ -722,13 +735,21 @@ impl Piece {
             .collect();
         Piece {
             region,
-            chart,
+            surface,
             boundary,
             loops,
             global,
             area,
-            beneath: None,
         }
+    }
+
+    /// The piece with its boundary's offsets blended into its surface
+    /// ([`RegionSurface::with_offsets`]) over bands at least `min_band` wide.
+    fn with_offsets(self, min_band: f64) -> Piece {
+        let surface = self
+            .surface
+            .with_offsets(&self.boundary, &self.loops, min_band);
+        Piece { surface, ..self }
     }
 
     /// The chart seen from beneath the region, for a region whose boundary, projected from
@@ -770,12 +791,16 @@ impl Piece {
             .collect();
         let chart =
             RegionChart::with_projection(self.region, &sphere, &loops, Projection::Closest).ok()?;
+        // Interior points go along the rays from the point of view onto the ellipsoid.
+        let lift = Lift::FromPoint {
+            origin,
+            ellipsoid: *e,
+        };
         Some(Piece {
-            chart,
+            surface: RegionSurface::lifted(chart, lift),
             boundary: self.boundary.clone(),
             loops: self.loops.clone(),
             global: self.global.clone(),
-            beneath: Some(origin),
             ..*self
         })
     }
@@ -783,27 +808,10 @@ impl Piece {
     fn input(&self) -> RegionInput<'_> {
         RegionInput {
             region: self.region,
-            chart: &self.chart,
+            surface: &self.surface,
             boundary: &self.boundary,
             loops: &self.loops,
         }
-    }
-
-    /// An interior point of this piece's triangulation on the region's ellipsoid `e`.
-    fn lift(&self, e: &Ellipsoid, p: DVec3) -> DVec3 {
-        if let Some(origin) = self.beneath {
-            // Along the ray from the point of view: the crossing nearest to p.
-            let best = e.intersect_ray(origin, p - origin).and_then(|ts| {
-                ts.into_iter()
-                    .filter(|t| *t > 0.0)
-                    .min_by(|a, b| (a - 1.0).abs().total_cmp(&(b - 1.0).abs()))
-            });
-            return best.map_or(p, |t| origin + t * (p - origin));
-        }
-        if *e != self.chart.ellipsoid {
-            return e.project_radially(p);
-        }
-        p
     }
 }
 
@@ -927,7 +935,13 @@ fn split_whole(
     let half = |lp: Vec<u32>| -> Result<Piece, RemeshError> {
         let points: Vec<DVec3> = lp.iter().map(|&v| pool.position(v)).collect();
         let chart = RegionChart::new(region, e, &[points])?;
-        Ok(Piece::new(region, chart, &[lp], &pool.positions, 0.0))
+        Ok(Piece::new(
+            region,
+            RegionSurface::new(chart),
+            &[lp],
+            &pool.positions,
+            0.0,
+        ))
     };
     Ok([half(north_loop)?, half(south_loop)?])
 }
@@ -953,7 +967,9 @@ fn triangulate_adaptive(
             .collect()
     };
     let mut heap = worst_of(&tris);
-    let mut total = boundary_vertices;
+    // Interior vertices the boundary-only triangulations already hold (sliver ears split).
+    let mut total =
+        boundary_vertices + tris.iter().map(AdaptiveTriangulation::added).sum::<usize>();
     let mut min_spacing = spacing / 4.0;
     let mut relaxations = 0;
     while total < budget {
@@ -1117,11 +1133,7 @@ fn join(
     let mut face_regions = Vec::new();
     for (piece, m) in pieces.iter().zip(&meshes) {
         let first_interior = positions.len();
-        match rep.ellipsoids.get(piece.region as usize) {
-            // Meshed on a stand-in surface: the points go back onto the region's ellipsoid.
-            Some(e) => positions.extend(m.interior.iter().map(|&p| piece.lift(e, p))),
-            None => positions.extend_from_slice(&m.interior),
-        }
+        positions.extend_from_slice(&m.interior);
         for tri in &m.triangles {
             let mut face = [0u32; 3];
             let mut ok = true;

@@ -8,6 +8,9 @@
 //!   region), the use the paper motivates;
 //! - [`refine`]: boundary arcs refined on the intersection curve of the two ellipsoids they
 //!   separate, one set of points shared by both regions;
+//! - [`surface`]: the surface a region is meshed on: its ellipsoid, with the boundary's
+//!   offsets from it blended in near the boundary so that the mesh meets the stored
+//!   boundary points without a fringe of standing triangles;
 //! - [`triangulate`]: one region's constrained Delaunay triangulation in its chart (spade),
 //!   by iterative vertex addition (section 5.3, the default) or from a parametric grid
 //!   (section 5.2);
@@ -22,6 +25,7 @@ pub mod chart;
 pub mod query;
 pub mod refine;
 pub mod subdivide;
+pub mod surface;
 pub mod triangulate;
 
 use crate::mesh::{Mesh, MeshError};
@@ -53,8 +57,9 @@ pub struct RemeshOptions {
     /// Total output vertex budget, shared among regions by their error; `None`: the file's
     /// suggestion, else [`DEFAULT_VERTICES`]. Capped at `max_vertices`.
     pub vertices: Option<usize>,
-    /// Stop refining once every region is within this radial distance of its ellipsoid, as a
-    /// fraction of the bounding-box diagonal; `None`: only the budget stops.
+    /// Stop refining once every face's centre is within this distance of its region's
+    /// surface ([`surface`]), as a fraction of the bounding-box diagonal; `None`: only the
+    /// budget stops.
     pub tolerance: Option<f64>,
     /// Adaptive (default) or parametric.
     pub scheme: Scheme,

@@ -277,6 +277,71 @@ fn between(a: DVec3, b: DVec3, project: impl Fn(DVec3) -> Option<DVec3>) -> DVec
 mod tests {
     use super::*;
 
+    /// Red–green: a face nearly edge-on to a flat ellipsoid, whose normal turns across it so
+    /// that one of its children faces against the ellipsoid even with chord midpoints, stays
+    /// whole; its neighbour splits only the edges it does not share with it; nothing in the
+    /// result faces against the ellipsoid. (Near the rim of an ellipsoid ten times flatter
+    /// than wide, where the normal turns fastest.)
+    #[test]
+    fn a_face_edge_on_to_its_ellipsoid_stays_whole_and_its_neighbour_splits_around_it() {
+        use crate::ellipsoid::{Ellipsoid, Sign};
+        let e = Ellipsoid {
+            center: DVec3::ZERO,
+            rotation: glam::DQuat::IDENTITY,
+            radii: DVec3::new(1.0, 1.0, 0.1),
+            sign: Sign::Positive,
+        };
+        let rep = Representation {
+            ellipsoids: vec![e],
+            ..Representation::default()
+        };
+        let facing = |t: [DVec3; 3]| {
+            (t[1] - t[0])
+                .cross(t[2] - t[0])
+                .dot(e.normal((t[0] + t[1] + t[2]) / 3.0))
+        };
+        let chord_children = |t: [DVec3; 3]| {
+            let m = [
+                0.5 * (t[0] + t[1]),
+                0.5 * (t[1] + t[2]),
+                0.5 * (t[2] + t[0]),
+            ];
+            [
+                [t[0], m[0], m[2]],
+                [m[0], t[1], m[1]],
+                [m[2], m[1], t[2]],
+                [m[0], m[1], m[2]],
+            ]
+        };
+        // Found by a random search over triangles of points on the ellipsoid near its rim.
+        let (a, b) = (
+            DVec3::new(0.4021, 0.0005, 0.0916),
+            DVec3::new(0.9824, 0.1609, 0.0095),
+        );
+        let apex = DVec3::new(0.7818, 0.1717, -0.0599);
+        // The edge-on face faces the ellipsoid, one of its chord children does not.
+        assert!(facing([a, b, apex]) > 0.0);
+        assert!(chord_children([a, b, apex])
+            .iter()
+            .any(|&t| facing(t) <= 0.0));
+        // The neighbour across a–b, and its chord children, face it.
+        let d = DVec3::new(0.2961, -0.2155, 0.0931);
+        assert!(facing([b, a, d]) > 0.0);
+        assert!(chord_children([b, a, d]).iter().all(|&t| facing(t) > 0.0));
+        let mesh = Mesh::new(vec![a, b, apex, d], vec![[0, 1, 2], [1, 0, 3]]).unwrap();
+        let (positions, faces, regions) = split_faces(&rep, &mesh, &[0, 0]);
+        assert!(faces.contains(&[0, 1, 2]), "{faces:?}");
+        // The neighbour: its two other edges split, three children, none on edge 0–1's
+        // midpoint (which is not made).
+        assert_eq!(faces.len(), 1 + 3, "{faces:?}");
+        assert_eq!(positions.len(), 4 + 2);
+        assert_eq!(regions, vec![0; 4]);
+        for t in &faces {
+            let corners = t.map(|v| positions[v as usize]);
+            assert!(facing(corners) > 0.0, "{t:?}");
+        }
+    }
+
     /// Every pattern of cut edges tiles the face: the children are counter-clockwise, their
     /// areas add up to the face's, and each cut edge's point is used.
     #[test]

@@ -5,7 +5,7 @@
 //!
 //! ```text
 //! AdaptiveTriangulation::new(&RegionInput, min_spacing) -> Result<Self, RemeshError>
-//!     .worst_error() -> Option<f64>   // radial distance of the worst face centre, model units
+//!     .worst_error() -> Option<f64>   // distance of the worst face centre from the surface
 //!     .insert_worst() -> bool         // false when no candidate is left
 //!     .added() -> usize               // interior vertices inserted so far
 //!     .finish() -> RegionMesh
@@ -20,7 +20,7 @@
 //!
 //! Boundary edges are never split and boundary vertices never moved: the output shares them
 //! exactly with the neighbouring regions. Faces along a boundary edge keep that chord's
-//! distance to the ellipsoid (refining the arcs is [`super::refine`]'s job), so
+//! distance to the surface (refining the arcs is [`super::refine`]'s job), so
 //! [`AdaptiveTriangulation::worst_error`] reports the worst face that may still be split,
 //! not the worst face.
 //!
@@ -30,6 +30,7 @@
 //! off the ellipsoid, can still face against the normal; nothing here can change it.
 
 use super::chart::RegionChart;
+use super::surface::RegionSurface;
 use super::RemeshError;
 use glam::{DVec2, DVec3};
 use spade::handles::{FixedFaceHandle, FixedVertexHandle, InnerTag};
@@ -44,8 +45,8 @@ use std::collections::{BinaryHeap, HashMap, VecDeque};
 pub struct RegionInput<'a> {
     /// The region (for error messages).
     pub region: u32,
-    /// Its chart (which holds its ellipsoid).
-    pub chart: &'a RegionChart,
+    /// The surface it is meshed on ([`RegionSurface::chart`] holds the chart).
+    pub surface: &'a RegionSurface,
     /// Positions of the boundary vertices the loops refer to (shared with the neighbours).
     pub boundary: &'a [DVec3],
     /// The region's boundary loops as indices into `boundary`, each closed (the first index
@@ -66,7 +67,7 @@ pub enum Corner {
 /// One region's triangles.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct RegionMesh {
-    /// New vertices, on the ellipsoid.
+    /// New vertices, on the region's surface ([`RegionSurface::point`]).
     pub interior: Vec<DVec3>,
     /// Triangles, counter-clockwise seen against the ellipsoid's signed normal
     /// ([`crate::ellipsoid::Ellipsoid::normal`]): outward for positive ellipsoids, inward for
@@ -79,6 +80,8 @@ pub struct RegionMesh {
 struct Vertex {
     position: Point2<f64>,
     point: DVec3,
+    /// Its height above the ellipsoid along the outward normal ([`RegionSurface::height_of`]).
+    height: f64,
     corner: Corner,
     /// For a boundary vertex, the chart positions of its neighbours along its (first) loop.
     along: Option<[DVec2; 2]>,
@@ -143,7 +146,7 @@ fn is_valid_plane_point(q: DVec2) -> bool {
 /// A region's constrained Delaunay triangulation in its chart, its faces marked inside or
 /// outside the region. Shared by both schemes.
 struct RegionCdt {
-    chart: RegionChart,
+    surface: RegionSurface,
     cdt: Cdt,
     /// Inserted interior vertices, in insertion order ([`Corner::Interior`] indices).
     interior: Vec<DVec3>,
@@ -169,7 +172,8 @@ impl RegionCdt {
         let region = input.region;
         let err = |what| Failure::Error(region_error(region, what));
         let loops = clean_loops(input)?;
-        let chart = input.chart.clone();
+        let surface = input.surface.clone();
+        let chart = &surface.chart;
         if !chart.ellipsoid.is_valid() {
             return Err(err("its ellipsoid is degenerate"));
         }
@@ -213,6 +217,7 @@ impl RegionCdt {
                 let vertex = Vertex {
                     position: to_point(q),
                     point,
+                    height: surface.height_of(q, point),
                     corner: Corner::Boundary(i),
                     along: Some([plane_of(previous), plane_of(next)]),
                 };
@@ -272,7 +277,7 @@ impl RegionCdt {
         }
 
         let count = cdt.num_vertices().max(1) as f64;
-        let flip = !plane_is_counter_clockwise(&chart, plane_sum / count)
+        let flip = !plane_is_counter_clockwise(chart, plane_sum / count)
             .ok_or_else(|| err("its chart is degenerate"))?;
         let direction =
             |i: u32| chart.to_sphere(input.boundary.get(i as usize).copied().unwrap_or(DVec3::X));
@@ -283,7 +288,7 @@ impl RegionCdt {
             })
             .collect();
         let region_cdt = RegionCdt {
-            chart,
+            surface,
             cdt,
             interior: Vec::new(),
             flip,
@@ -293,7 +298,6 @@ impl RegionCdt {
         region_cdt.check_sides(&loops, &handles, region)?;
         Ok(region_cdt)
     }
-
     /// The region must lie on the left of its loops (seen against the signed normal); if most
     /// loop edges see it on their right, the flood fill found the complement: the chart's pole
     /// lies inside the region.
@@ -337,7 +341,7 @@ impl RegionCdt {
     fn insert_interior(
         &mut self,
         plane: DVec2,
-        point: DVec3,
+        (point, height): (DVec3, f64),
         hint: FixedVertexHandle,
     ) -> Option<FixedVertexHandle> {
         let index = u32::try_from(self.interior.len()).ok()?;
@@ -345,6 +349,7 @@ impl RegionCdt {
         let vertex = Vertex {
             position: to_point(plane),
             point,
+            height,
             corner: Corner::Interior(index),
             along: None,
         };
@@ -490,11 +495,14 @@ impl Ord for Candidate {
 }
 
 /// Iterative vertex addition (section 5.3), the default decoder: the region's boundary in its
-/// chart, then repeatedly the inside face whose flat centroid is farthest from the ellipsoid
-/// (radially) is split at a new vertex on the ellipsoid.
+/// chart, then repeatedly the inside face whose flat centroid is farthest from the region's
+/// surface is split at a new vertex on the surface.
 ///
-/// The new vertex is the face's *plane* centroid mapped to the ellipsoid
-/// ([`RegionChart::from_plane`]): the plane centroid lies strictly inside the plane triangle
+/// The distance is measured to the surface point at the face's *plane* centroid (the paper
+/// measures to the ellipsoid along the ray from its centre; near the boundary the surface is
+/// the ellipsoid displaced toward the boundary points, [`super::surface`]), and a face turned
+/// against its ellipsoid counts as infinitely far. The new vertex is that plane centroid
+/// mapped to the surface ([`RegionSurface::point`]): the plane centroid lies strictly inside the plane triangle
 /// (checked with spade's exact orientation predicate), hence inside the region, so the
 /// boundary is never split. The faces are kept in a max-heap with lazy invalidation (an entry
 /// is dropped when its three corners no longer form a face); an insertion pushes only the new
@@ -531,8 +539,9 @@ impl AdaptiveTriangulation {
         Ok(this)
     }
 
-    /// The radial distance (model units) of the worst face's flat centroid among the faces
-    /// that may still be split; `None` when none is left.
+    /// The distance (model units) of the worst face's flat centroid from the surface among
+    /// the faces that may still be split (infinite for a face turned against its
+    /// ellipsoid); `None` when none is left.
     pub fn worst_error(&self) -> Option<f64> {
         self.heap.peek().map(|c| c.error)
     }
@@ -549,7 +558,7 @@ impl AdaptiveTriangulation {
                 .map(|h| self.inner.cdt.vertex(h).position())
                 .map(|p| DVec2::new(p.x, p.y));
             let plane = (qa + qb + qc) / 3.0;
-            let point = self.inner.chart.from_plane(plane);
+            let point = self.inner.surface.point_and_height(plane);
             if self
                 .inner
                 .insert_interior(plane, point, candidate.corners[0])
@@ -625,19 +634,34 @@ impl AdaptiveTriangulation {
     /// Pushes the face's candidate, unless its split point is too close to a corner or not
     /// strictly inside it.
     fn push_face(&mut self, face: FixedFaceHandle<InnerTag>) {
-        let chart = &self.inner.chart;
+        let surface = &self.inner.surface;
         let face = self.inner.cdt.face(face);
         let vertices = face.vertices();
         let [pa, pb, pc] = vertices.map(|v| v.data().point);
-        let error = chart.ellipsoid.radial_distance((pa + pb + pc) / 3.0);
-        if !error.is_finite() {
-            return;
-        }
         let [qa, qb, qc] = face.positions().map(|p| DVec2::new(p.x, p.y));
         let plane = (qa + qb + qc) / 3.0;
         if !is_valid_plane_point(plane) {
             return;
         }
+        // The surface at the plane centroid, its height the corners' mean (the blend is
+        // smooth over a face; the exact height is taken for the vertex inserted).
+        let height = vertices.iter().map(|v| v.data().height).sum::<f64>() / 3.0;
+        let point = surface.at_height(plane, height);
+        let centroid = (pa + pb + pc) / 3.0;
+        let error = point.distance(centroid);
+        if !error.is_finite() {
+            return;
+        }
+        // A face turned against its ellipsoid (the test the assembled mesh is checked with)
+        // is the worst there is: it is split before any other, whatever the tolerance.
+        let normal = (pb - pa).cross(pc - pa);
+        let facing = normal.dot(surface.ellipsoid().normal(centroid));
+        let turned = if self.inner.flip {
+            facing > 0.0
+        } else {
+            facing < 0.0
+        };
+        let error = if turned { f64::INFINITY } else { error };
         let q = to_point(plane);
         if !face
             .adjacent_edges()
@@ -658,10 +682,9 @@ impl AdaptiveTriangulation {
         if !clear {
             return;
         }
-        let point = chart.from_plane(plane);
         let spacing = self
             .min_spacing
-            .max(SPACING_FLOOR * chart.ellipsoid.radii.max_element());
+            .max(SPACING_FLOOR * surface.chart.ellipsoid.radii.max_element());
         if !point.is_finite() || [pa, pb, pc].iter().any(|p| p.distance(point) < spacing) {
             return;
         }
@@ -754,6 +777,13 @@ pub fn triangulate_parametric(
 const MIN_GRID_BUDGET: f64 = (1u64 << 16) as f64;
 
 impl RegionCdt {
+    /// A vertex's direction on the chart's unit sphere (from its chart position: interior
+    /// points lie off the chart's ellipsoid once lifted or displaced).
+    fn sphere_direction(&self, v: &Vertex) -> DVec3 {
+        let p = v.position();
+        self.surface.chart.plane_to_sphere(DVec2::new(p.x, p.y))
+    }
+
     /// The region's share of the unit sphere: the spherical area of its inside faces' corner
     /// directions over 4π.
     fn sphere_share(&self) -> f64 {
@@ -762,7 +792,7 @@ impl RegionCdt {
             .inner_faces()
             .filter(|f| *f.data())
             .map(|f| {
-                let [a, b, c] = f.vertices().map(|v| self.chart.to_sphere(v.data().point));
+                let [a, b, c] = f.vertices().map(|v| self.sphere_direction(v.data()));
                 // Van Oosterom & Strackee: tan(E/2) = |a·(b×c)| / (1 + a·b + b·c + c·a).
                 let numerator = a.dot(b.cross(c)).abs();
                 let denominator = 1.0 + a.dot(b) + b.dot(c) + c.dot(a);
@@ -774,8 +804,8 @@ impl RegionCdt {
 
     /// The grid points with `rows` elevations and 2·`rows` azimuths that lie inside the region
     /// (in an inside face of the boundary-only triangulation) and at least half an elevation
-    /// step from every boundary edge, as (chart position, point on the ellipsoid), row by row.
-    fn grid_points(&self, rows: f64, target: usize) -> Vec<(DVec2, DVec3)> {
+    /// step from every boundary edge, as (chart position, (point on the surface, its height)), row by row.
+    fn grid_points(&self, rows: f64, target: usize) -> Vec<(DVec2, (DVec3, f64))> {
         use std::f64::consts::{FRAC_PI_2, PI};
         let (low, high) = self.elevation_range();
         let budget = (16.0 * target as f64).max(MIN_GRID_BUDGET);
@@ -798,7 +828,7 @@ impl RegionCdt {
                 let azimuth = (j as f64 + 0.5) * step;
                 let (sin_az, cos_az) = azimuth.sin_cos();
                 let u = DVec3::new(cos_el * cos_az, cos_el * sin_az, sin_el);
-                let plane = self.chart.sphere_to_plane(u);
+                let plane = self.surface.chart.sphere_to_plane(u);
                 if !is_valid_plane_point(plane) {
                     continue;
                 }
@@ -814,7 +844,7 @@ impl RegionCdt {
                 if !*face.data() || near.is_near(u) {
                     continue;
                 }
-                points.push((plane, self.chart.ellipsoid.from_unit_sphere(u)));
+                points.push((plane, self.surface.point_and_height(plane)));
             }
         }
         points
@@ -826,9 +856,7 @@ impl RegionCdt {
         use std::f64::consts::FRAC_PI_2;
         let (mut low, mut high) = (f64::INFINITY, f64::NEG_INFINITY);
         for face in self.cdt.inner_faces().filter(|f| *f.data()) {
-            let corners = face
-                .vertices()
-                .map(|v| self.chart.to_sphere(v.data().point));
+            let corners = face.vertices().map(|v| self.sphere_direction(v.data()));
             for k in 0..3 {
                 let (a, b) = (corners[k], corners[(k + 1) % 3]);
                 let (z_low, z_high) = arc_z_range(a, b);
@@ -837,7 +865,7 @@ impl RegionCdt {
             }
         }
         for (pole, z) in [(DVec3::Z, 1.0), (DVec3::NEG_Z, -1.0)] {
-            let plane = self.chart.sphere_to_plane(pole);
+            let plane = self.surface.chart.sphere_to_plane(pole);
             if is_valid_plane_point(plane) {
                 if let spade::PositionInTriangulation::OnFace(f) = self.cdt.locate(to_point(plane))
                 {
@@ -978,7 +1006,7 @@ mod tests {
         let (chart, boundary, loops) = square_with_hole(&e);
         let input = RegionInput {
             region: 0,
-            chart: &chart,
+            surface: &RegionSurface::new(chart.clone()),
             boundary: &boundary,
             loops: &loops,
         };
@@ -1068,7 +1096,7 @@ mod tests {
         let (chart, boundary, loops) = square_with_hole(&e);
         let input = RegionInput {
             region: 0,
-            chart: &chart,
+            surface: &RegionSurface::new(chart.clone()),
             boundary: &boundary,
             loops: &loops,
         };

@@ -1,0 +1,452 @@
+//! A region's surface as the decoder meshes it: a point of the chart's plane → the chart's
+//! ellipsoid → the region's own ellipsoid → plus the boundary's offsets, blended in near the
+//! boundary.
+//!
+//! The paper places every interior vertex on the region's ellipsoid (section 5.3) and keeps
+//! the stored boundary points where they are. On real meshes the two disagree: an ellipsoid
+//! fitted to a whole region passes a few tenths of a percent to a few percent of the
+//! diagonal from the region's boundary (the surface bends away from the fit where it meets
+//! its neighbours). Meshed literally, the gap is closed by a fringe of triangles that climb
+//! from the ellipsoid to the boundary within one edge length; as the budget grows those
+//! triangles stand up, and the first one to lean past the vertical faces against its
+//! ellipsoid (a flipped triangle). Vertex addition makes it worse, since the fringe is where
+//! the faces are farthest from the ellipsoid, so that is where it keeps inserting.
+//!
+//! So the surface a region is meshed on is its ellipsoid displaced, near the boundary, by
+//! the boundary's own offsets ([`OffsetBlend`]): each boundary point's *foot* is where its
+//! chart position lands on the ellipsoid and its *offset* is its signed height above the
+//! foot along the ellipsoid's outward normal; an interior point x gets the offsets of the
+//! nearby boundary interpolated (inverse-distance weighting over the boundary's segments,
+//! which is exact on the boundary), faded out with a smoothstep over a band [`BLEND_REACH`]
+//! times as wide as that offset (never narrower than the mesh's target edge length), and is
+//! moved that far along the normal at x. Heights, not vectors: offsets from opposite sides
+//! of a curved region point different ways, and blending them as vectors would shear the
+//! surface sideways until it folds. The displaced surface meets every boundary point whose
+//! foot is its closest point on the ellipsoid (the decoder's default chart) exactly, leaves
+//! it parallel to the ellipsoid, and rises or falls to it with a slope of at most about
+//! 1.5 / [`BLEND_REACH`] (0.5, 27°), whatever the budget; beyond the band it is the
+//! ellipsoid itself. Both regions along an arc blend to the same
+//! points, so the mesh stays watertight, and the crease along the arc is the angle between
+//! the two ellipsoids there.
+
+use super::chart::RegionChart;
+use crate::ellipsoid::Ellipsoid;
+use glam::{DVec2, DVec3};
+
+/// How wide, in multiples of the offset it fades, the band is over which a boundary point's
+/// offset blends into the ellipsoid: the displaced surface's slope against the ellipsoid is
+/// at most about 1.5 / `BLEND_REACH` (the smoothstep's steepest slope over the band).
+pub const BLEND_REACH: f64 = 3.0;
+
+/// How an interior point of the chart's surface reaches the region's ellipsoid.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Lift {
+    /// The chart is on the region's ellipsoid: nothing to do.
+    None,
+    /// The chart is on a stand-in with the region's centre: along the ray from the centre
+    /// onto this ellipsoid (the region's own).
+    Radial(Ellipsoid),
+    /// The chart is on a sphere seen from `origin`: along the ray from `origin`, the
+    /// crossing with this ellipsoid nearest to the chart's point.
+    FromPoint {
+        /// Where the rays start.
+        origin: DVec3,
+        /// The region's own ellipsoid.
+        ellipsoid: Ellipsoid,
+    },
+}
+
+impl Lift {
+    /// `p`, a point of the chart's surface, on the region's ellipsoid.
+    pub fn apply(&self, p: DVec3) -> DVec3 {
+        match *self {
+            Lift::None => p,
+            Lift::Radial(e) => e.project_radially(p),
+            Lift::FromPoint { origin, ellipsoid } => {
+                let best = ellipsoid.intersect_ray(origin, p - origin).and_then(|ts| {
+                    ts.into_iter()
+                        .filter(|t| *t > 0.0)
+                        .min_by(|a, b| (a - 1.0).abs().total_cmp(&(b - 1.0).abs()))
+                });
+                best.map_or(p, |t| origin + t * (p - origin))
+            }
+        }
+    }
+}
+
+/// The surface one region (or piece of one) is meshed on: see the module documentation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RegionSurface {
+    /// The chart: plane ↔ the chart's ellipsoid, and the region's boundary in the plane.
+    pub chart: RegionChart,
+    lift: Lift,
+    blend: OffsetBlend,
+}
+
+impl RegionSurface {
+    /// The surface of `chart`'s own ellipsoid, without offsets.
+    pub fn new(chart: RegionChart) -> RegionSurface {
+        RegionSurface::lifted(chart, Lift::None)
+    }
+
+    /// The chart's surface carried onto the region's ellipsoid by `lift`, without offsets.
+    pub fn lifted(chart: RegionChart, lift: Lift) -> RegionSurface {
+        RegionSurface {
+            chart,
+            lift,
+            blend: OffsetBlend::default(),
+        }
+    }
+
+    /// The same surface with the heights of `boundary` (the points `loops` index, closed
+    /// loops without the first point repeated) above the ellipsoid blended in over bands at
+    /// least `min_band` wide. Loop indices out of range are skipped.
+    pub fn with_offsets(
+        self,
+        boundary: &[DVec3],
+        loops: &[Vec<u32>],
+        min_band: f64,
+    ) -> RegionSurface {
+        let e = self.ellipsoid();
+        let feet: Vec<DVec3> = boundary
+            .iter()
+            .map(|&b| self.on_ellipsoid(self.chart.to_plane(b)))
+            .collect();
+        let heights: Vec<f64> = boundary
+            .iter()
+            .zip(&feet)
+            .map(|(&b, &f)| (b - f).dot(e.outward_normal(f)))
+            .collect();
+        let blend = OffsetBlend::new(&feet, &heights, loops, min_band);
+        RegionSurface { blend, ..self }
+    }
+
+    /// The region's own ellipsoid (the chart's, unless the chart is on a stand-in).
+    pub fn ellipsoid(&self) -> &Ellipsoid {
+        match &self.lift {
+            Lift::None => &self.chart.ellipsoid,
+            Lift::Radial(e) | Lift::FromPoint { ellipsoid: e, .. } => e,
+        }
+    }
+
+    /// The point of the region's ellipsoid at chart position `q` (no offsets).
+    pub fn on_ellipsoid(&self, q: DVec2) -> DVec3 {
+        self.lift.apply(self.chart.from_plane(q))
+    }
+
+    /// The point of the surface at chart position `q`: on the ellipsoid, moved along its
+    /// outward normal by the blended boundary height there.
+    pub fn point(&self, q: DVec2) -> DVec3 {
+        self.point_and_height(q).0
+    }
+
+    /// [`RegionSurface::point`] and the height it was moved by.
+    pub fn point_and_height(&self, q: DVec2) -> (DVec3, f64) {
+        let x = self.on_ellipsoid(q);
+        let h = self.blend.height(x);
+        (self.raise(x, h), h)
+    }
+
+    /// The point at chart position `q` raised by `height` along the ellipsoid's outward
+    /// normal (the surface itself where `height` is the blended height there).
+    pub fn at_height(&self, q: DVec2, height: f64) -> DVec3 {
+        self.raise(self.on_ellipsoid(q), height)
+    }
+
+    /// How far `p`, a point whose chart position is `q`, lies above the ellipsoid along its
+    /// outward normal there.
+    pub fn height_of(&self, q: DVec2, p: DVec3) -> f64 {
+        let x = self.on_ellipsoid(q);
+        (p - x).dot(self.ellipsoid().outward_normal(x))
+    }
+
+    fn raise(&self, x: DVec3, height: f64) -> DVec3 {
+        if height == 0.0 {
+            return x;
+        }
+        x + height * self.ellipsoid().outward_normal(x)
+    }
+}
+
+/// Boundary heights blended into a region's interior (see the module documentation).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct OffsetBlend {
+    /// The boundary's segments: feet (on the ellipsoid) and heights of both ends.
+    segments: Vec<Segment>,
+    /// Narrowest band.
+    min_band: f64,
+    /// Widest band anywhere ([`BLEND_REACH`] times the largest height, at least
+    /// `min_band`): beyond it from every foot the height is zero.
+    max_band: f64,
+    /// Segments nearer than this to a point are the ones its height is blended from
+    /// ([`WEIGHT_REACH`] times the widest band), their weights tapered to zero at it.
+    reach: f64,
+    /// Side of the cubic cells the segments are bucketed by: at least `reach` /
+    /// [`CELL_FILL`].
+    side: f64,
+    /// The segments by the cells they pass through, sorted by cell: a point's segments lie
+    /// in its cell and the 26 around it.
+    cells: Vec<([i64; 3], u32)>,
+}
+
+/// Most cell entries of a blend beyond four per segment: a boundary far longer than its
+/// region's bands (hostile files) gets larger cells instead of more entries.
+const MAX_CELL_ENTRIES: f64 = (1u64 << 20) as f64;
+
+/// How far, in widest bands, a segment still weighs in a point's height.
+const WEIGHT_REACH: f64 = 2.0;
+
+/// The reach over a cell's side. A segment's point within the reach of a query is within
+/// a quarter cell of a sample the segment was bucketed by (samples a quarter cell apart),
+/// so that sample's cell is the query's or a neighbour of it.
+const CELL_FILL: f64 = 0.75;
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Segment {
+    foot: [DVec3; 2],
+    height: [f64; 2],
+}
+
+impl OffsetBlend {
+    /// The blend of `heights` at `feet` along `loops` (see [`RegionSurface::with_offsets`]).
+    /// Empty (zero height everywhere) when every height is zero or an input is not finite.
+    pub fn new(feet: &[DVec3], heights: &[f64], loops: &[Vec<u32>], min_band: f64) -> Self {
+        let longest = heights.iter().map(|h| h.abs()).fold(0.0, f64::max);
+        // Offsets at rounding level (points computed on the ellipsoid) blend nothing.
+        let usable = longest > 1e-9 * min_band
+            && longest.is_finite()
+            && min_band.is_finite()
+            && min_band >= 0.0
+            && feet.iter().all(|f| f.is_finite());
+        if !usable {
+            return OffsetBlend::default();
+        }
+        let mut segments = Vec::new();
+        for lp in loops {
+            let ends = |k: usize| -> Option<(DVec3, f64)> {
+                let i = *lp.get(k)? as usize;
+                Some((*feet.get(i)?, *heights.get(i)?))
+            };
+            for k in 0..lp.len() {
+                let (Some((fa, oa)), Some((fb, ob))) = (ends(k), ends((k + 1) % lp.len())) else {
+                    continue;
+                };
+                segments.push(Segment {
+                    foot: [fa, fb],
+                    height: [oa, ob],
+                });
+            }
+        }
+        let max_band = (BLEND_REACH * longest).max(min_band);
+        let reach = WEIGHT_REACH * max_band;
+        let length: f64 = segments.iter().map(|s| s.foot[0].distance(s.foot[1])).sum();
+        let side = (reach / CELL_FILL).max(4.0 * length / MAX_CELL_ENTRIES);
+        if !(side.is_finite() && side > 0.0) {
+            return OffsetBlend::default();
+        }
+        let mut cells = Vec::new();
+        for (index, s) in segments.iter().enumerate() {
+            let [a, b] = s.foot;
+            // Samples a quarter cell apart.
+            let steps = ((a.distance(b) / (0.25 * side)).ceil()).max(1.0) as usize;
+            let mut last = None;
+            for k in 0..=steps {
+                let key = cell_of(a.lerp(b, k as f64 / steps as f64), side);
+                if last != Some(key) {
+                    cells.push((key, index as u32));
+                    last = Some(key);
+                }
+            }
+        }
+        cells.sort_unstable();
+        cells.dedup();
+        OffsetBlend {
+            segments,
+            min_band,
+            max_band,
+            reach,
+            side,
+            cells,
+        }
+    }
+
+    /// The height at `x`, a point on the ellipsoid: the heights of the boundary segments
+    /// within the reach of `x`, weighted by the inverse cube of their distance to `x` (each
+    /// segment's height taken at its point nearest to `x`, its weight scaled by its length
+    /// and tapered to zero at the reach), faded by a smoothstep over [`BLEND_REACH`] times
+    /// that height (at least the minimum band) from the nearest foot. Exact at the feet;
+    /// zero beyond the widest band.
+    pub fn height(&self, x: DVec3) -> f64 {
+        if self.segments.is_empty() || !x.is_finite() {
+            return 0.0;
+        }
+        let centre = cell_of(x, self.side);
+        let mut near: Vec<u32> = Vec::new();
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    let key = [centre[0] + dx, centre[1] + dy, centre[2] + dz];
+                    let from = self.cells.partition_point(|(k, _)| *k < key);
+                    near.extend(
+                        self.cells[from..]
+                            .iter()
+                            .take_while(|(k, _)| *k == key)
+                            .map(|&(_, s)| s),
+                    );
+                }
+            }
+        }
+        near.sort_unstable();
+        near.dedup();
+        let mut nearest = f64::INFINITY;
+        let mut weights = 0.0;
+        let mut sum = 0.0;
+        for s in near.iter().filter_map(|&i| self.segments.get(i as usize)) {
+            let [a, b] = s.foot;
+            let ab = b - a;
+            let length2 = ab.length_squared();
+            let t = if length2 > 0.0 {
+                ((x - a).dot(ab) / length2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let d = (a + ab * t).distance(x);
+            let height = s.height[0] + (s.height[1] - s.height[0]) * t;
+            if d <= 0.0 {
+                return height;
+            }
+            if d >= self.reach {
+                continue;
+            }
+            nearest = nearest.min(d);
+            let taper = 1.0 - (d / self.reach) * (d / self.reach);
+            let w = length2.sqrt() * taper * taper / (d * d * d);
+            weights += w;
+            sum += w * height;
+        }
+        if !(nearest < self.max_band && weights > 0.0 && weights.is_finite()) {
+            return 0.0;
+        }
+        let height = sum / weights;
+        let band = (BLEND_REACH * height.abs()).max(self.min_band);
+        let s = (nearest / band).min(1.0);
+        let out = height * (1.0 - s * s * (3.0 - 2.0 * s));
+        if out.is_finite() {
+            out
+        } else {
+            0.0
+        }
+    }
+}
+
+/// The cubic cell of side `side` holding `p` (coordinates clamped far inside i64).
+fn cell_of(p: DVec3, side: f64) -> [i64; 3] {
+    let key = |v: f64| (v / side).floor().clamp(-1e15, 1e15) as i64;
+    [key(p.x), key(p.y), key(p.z)]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A square loop of feet on the plane z = 0, each `h` above it.
+    fn square(h: f64) -> OffsetBlend {
+        let feet = [
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(0.0, 1.0, 0.0),
+        ];
+        OffsetBlend::new(&feet, &[h; 4], &[vec![0, 1, 2, 3]], 0.01)
+    }
+
+    #[test]
+    fn the_blend_is_exact_on_the_boundary_and_zero_beyond_its_band() {
+        let b = square(0.1);
+        for x in [DVec3::new(0.5, 0.0, 0.0), DVec3::new(1.0, 1.0, 0.0)] {
+            assert!((b.height(x) - 0.1).abs() < 1e-12);
+        }
+        // Band: 3 × 0.1 from the nearest foot.
+        assert_eq!(b.height(DVec3::new(0.5, 0.31, 0.0)), 0.0);
+        let inside = b.height(DVec3::new(0.5, 0.15, 0.0));
+        assert!(inside > 0.0 && inside < 0.1, "{inside}");
+    }
+
+    #[test]
+    fn the_blend_rises_no_steeper_than_its_reach_allows() {
+        let h = 0.05;
+        let b = square(h);
+        let step = 1e-4;
+        let mut worst: f64 = 0.0;
+        let mut y = 0.0;
+        while y < 0.5 {
+            let z0 = b.height(DVec3::new(0.5, y, 0.0));
+            let z1 = b.height(DVec3::new(0.5, y + step, 0.0));
+            worst = worst.max((z1 - z0).abs() / step);
+            y += step;
+        }
+        assert!(worst <= 1.5 / BLEND_REACH + 1e-3, "slope {worst}");
+    }
+
+    /// The cell lookup finds every segment within the reach: the height equals the same
+    /// formula summed over all segments, at points around a wavy loop of short and long
+    /// segments.
+    #[test]
+    fn the_cells_find_every_segment_a_height_is_blended_from() {
+        let mut rng = crate::rng::SplitMix64::new(3);
+        let feet: Vec<DVec3> = (0..60)
+            .map(|k| {
+                let t = std::f64::consts::TAU * (k as f64 + 0.6 * rng.next_f64()) / 60.0;
+                DVec3::new(t.cos(), t.sin(), 0.1 * (3.0 * t).sin())
+            })
+            .collect();
+        let heights: Vec<f64> = (0..60)
+            .map(|k| 0.02 + 0.03 * ((k % 7) as f64 / 7.0))
+            .collect();
+        let lp: Vec<u32> = (0..60).filter(|k| k % 9 != 4).collect();
+        let b = OffsetBlend::new(&feet, &heights, &[lp], 0.01);
+        let brute = |x: DVec3| {
+            let (mut nearest, mut weights, mut sum) = (f64::INFINITY, 0.0, 0.0);
+            for s in &b.segments {
+                let [p, q] = s.foot;
+                let t = ((x - p).dot(q - p) / (q - p).length_squared()).clamp(0.0, 1.0);
+                let d = p.lerp(q, t).distance(x);
+                if d < b.reach {
+                    nearest = f64::min(nearest, d);
+                    let taper = 1.0 - (d / b.reach).powi(2);
+                    let w = (q - p).length() * taper * taper / d.powi(3);
+                    weights += w;
+                    sum += w * (s.height[0] + (s.height[1] - s.height[0]) * t);
+                }
+            }
+            if nearest >= b.max_band || weights == 0.0 {
+                return 0.0;
+            }
+            let h = sum / weights;
+            let s = (nearest / (BLEND_REACH * h.abs()).max(b.min_band)).min(1.0);
+            h * (1.0 - s * s * (3.0 - 2.0 * s))
+        };
+        let mut blended = 0;
+        for _ in 0..5000 {
+            let x = DVec3::new(
+                2.4 * rng.next_f64() - 1.2,
+                2.4 * rng.next_f64() - 1.2,
+                0.4 * rng.next_f64() - 0.2,
+            );
+            let (h, expected) = (b.height(x), brute(x));
+            assert!(
+                (h - expected).abs() <= 1e-12 * expected.abs().max(1e-3),
+                "{x}: {h} vs {expected}"
+            );
+            blended += usize::from(h != 0.0);
+        }
+        assert!(blended > 100, "{blended}");
+    }
+
+    #[test]
+    fn zero_offsets_blend_nothing() {
+        let b = square(0.0);
+        assert_eq!(b, OffsetBlend::default());
+        assert_eq!(b.height(DVec3::new(0.5, 0.0, 0.0)), 0.0);
+    }
+}
