@@ -118,11 +118,12 @@ pub fn refine_arcs(rep: &Representation, settings: &RefineSettings) -> RefinedBo
 }
 
 /// Whether the corner `a → b → c` turns towards the region on its left, as that region's
-/// chart sees it: the orientation of the three points' radial projections on `e` (what
-/// the stereographic projection preserves), seen with the mesh's outward normal up.
+/// chart sees it: the orientation of the three points' closest points on `e` (the map the
+/// decoder's charts use by default; the stereographic projection preserves orientation),
+/// seen with the mesh's outward normal up.
 fn turns_left(e: &Ellipsoid, a: DVec3, b: DVec3, c: DVec3) -> bool {
-    let (u, v, w) = (a - e.center, b - e.center, c - e.center);
-    e.sign.factor() * u.dot(v.cross(w)) > 0.0
+    let (p, q, r) = (e.closest_point(a), e.closest_point(b), e.closest_point(c));
+    e.sign.factor() * (q - p).cross(r - q).dot(e.outward_normal(q)) > 0.0
 }
 
 /// Removes the chain points at which both regions see a convex corner.
@@ -214,28 +215,49 @@ struct Curve<'a> {
 }
 
 impl Curve<'_> {
-    /// A point of the curve near the chord `a`–`b`'s midpoint (see the module doc).
+    /// The curve's point for `p`: its Newton projection onto the intersection of the two
+    /// ellipsoids when that converges within `reach` of `p`, else the midpoint of its radial
+    /// projections onto both (the fits need not meet there); on the border, its radial
+    /// projection onto the one ellipsoid.
+    fn foot(&self, p: DVec3, reach: f64) -> DVec3 {
+        match self.second {
+            Some(second) => project_to_intersection(self.first, second, p)
+                .filter(|f| (*f - p).length() <= reach)
+                .unwrap_or_else(|| {
+                    0.5 * (self.first.project_radially(p) + second.project_radially(p))
+                }),
+            None => self.first.project_radially(p),
+        }
+    }
+
+    /// A point of the curve near the chord `a`–`b`'s midpoint (see the module doc), carried
+    /// by the mean of the ends' offsets from the curve, and between the ends along the
+    /// chord: within half the chord's length of its midpoint, and in its middle three fifths
+    /// once projected on it; else, or when an end lies farther than that from the curve, the
+    /// chord's midpoint.
+    ///
+    /// Stored points lie off the curve wherever the fitted ellipsoids miss the boundary;
+    /// points put on the curve between them would make the arc zigzag in and out by that
+    /// offset, and the surfaces blended to it ([`super::surface`]) ripple with it. Carried by
+    /// the ends' offsets, the new points follow the stored polyline's distance from the
+    /// curve and the curve's shape. A point beside one end would fold the polyline back on
+    /// itself (a hairpin whose thin triangle both regions' charts can take for their own).
     fn point_between(&self, a: DVec3, b: DVec3) -> DVec3 {
         let mid = 0.5 * (a + b);
         let chord = (b - a).length();
-        let near = |p: DVec3, reach: f64| p.is_finite() && (p - mid).length() <= reach * chord;
-        if let Some(second) = self.second {
-            if let Some(p) = project_to_intersection(self.first, second, mid) {
-                if near(p, 0.5) {
-                    return p;
-                }
-            }
-            let p = 0.5 * (self.first.project_radially(mid) + second.project_radially(mid));
-            if near(p, 0.5) {
-                return p;
-            }
+        let reach = 0.5 * chord;
+        // Ends farther from the curve than that say nothing of the arc's shape: midpoint.
+        let offset = |p: DVec3| Some(p - self.foot(p, reach)).filter(|o| o.length() <= reach);
+        let (Some(oa), Some(ob)) = (offset(a), offset(b)) else {
+            return mid;
+        };
+        let m = self.foot(mid, reach) + 0.5 * (oa + ob);
+        let along = (m - a).dot(b - a) / (chord * chord);
+        if m.is_finite() && (m - mid).length() <= reach && (0.2..=0.8).contains(&along) {
+            m
         } else {
-            let p = self.first.project_radially(mid);
-            if near(p, 0.5) {
-                return p;
-            }
+            mid
         }
-        mid
     }
 }
 
@@ -357,6 +379,77 @@ mod tests {
     fn circle_point(t: f64) -> DVec3 {
         let r = 0.75f64.sqrt();
         DVec3::new(0.5, r * t.cos(), r * t.sin())
+    }
+
+    /// Stored points off the curve (here 0.05 outside it, away from its axis): the points
+    /// refined between them keep about that offset instead of dropping onto the curve (an
+    /// arc that zigzags in and out, and surfaces blended to it that ripple).
+    #[test]
+    fn refined_points_carry_their_ends_offsets() {
+        let out = |p: DVec3| {
+            let radial = DVec3::new(0.0, p.y, p.z).normalize();
+            p + 0.05 * radial
+        };
+        let stored: Vec<DVec3> = (0..6)
+            .map(|k| out(circle_point(std::f64::consts::TAU * k as f64 / 6.0)))
+            .collect();
+        let rep = two_spheres(stored);
+        let settings = RefineSettings {
+            spacing: 0.1,
+            tolerance: 1e-3,
+            max_new_points: 10_000,
+            prune: false,
+        };
+        let refined = refine_arcs(&rep, &settings);
+        assert!(refined.added > 30);
+        for p in &refined.points {
+            let off_axis = DVec3::new(0.0, p.y, p.z).length();
+            assert!((p.x - 0.5).abs() < 1e-9, "{p}");
+            // The mean of two ends' offset vectors is shorter where their directions part:
+            // by 0.05·(1 − cos 30°) ≈ 0.007 between stored points 60° apart, less deeper.
+            let r = 0.75f64.sqrt();
+            assert!(
+                off_axis > r + 0.04 && off_axis < r + 0.05 + 1e-9,
+                "{p}: {off_axis}"
+            );
+        }
+    }
+
+    /// Whatever the ends, a refined point lies within half the chord of its midpoint and in
+    /// the chord's middle three fifths (no hairpin), or is the midpoint itself.
+    #[test]
+    fn refined_points_lie_between_their_ends() {
+        let e1 = Ellipsoid::sphere(DVec3::ZERO, 1.0);
+        let e2 = Ellipsoid::sphere(DVec3::X, 1.0);
+        let curve = Curve {
+            first: &e1,
+            second: Some(&e2),
+        };
+        let mut rng = crate::rng::SplitMix64::new(7);
+        let mut off_midpoint = 0;
+        for _ in 0..2000 {
+            let mut point = || {
+                circle_point(rng.next_f64() * std::f64::consts::TAU)
+                    + 0.3
+                        * DVec3::new(
+                            rng.next_f64() - 0.5,
+                            rng.next_f64() - 0.5,
+                            rng.next_f64() - 0.5,
+                        )
+            };
+            let (a, b) = (point(), point());
+            let m = curve.point_between(a, b);
+            let mid = 0.5 * (a + b);
+            if m == mid {
+                continue;
+            }
+            off_midpoint += 1;
+            let chord = (b - a).length();
+            let along = (m - a).dot(b - a) / (chord * chord);
+            assert!((m - mid).length() <= 0.5 * chord + 1e-12, "{a} {b} {m}");
+            assert!((0.2..=0.8).contains(&along), "{a} {b} {m}: {along}");
+        }
+        assert!(off_midpoint > 1000, "{off_midpoint}");
     }
 
     #[test]
