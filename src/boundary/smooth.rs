@@ -2,10 +2,22 @@
 //! (Simari & Singh 2005, section 4.1).
 //!
 //! Each pass moves every boundary point `p` to `(1 − ε)·p + ε·q`, where `q` is the centroid of
-//! its *associated points*: its neighbours along the arcs through it, and its radial
-//! projections Π (paper, section 2) onto the ellipsoids of the regions on either side of those
-//! arcs. All points are updated from the previous pass's positions (Jacobi), so the result
-//! does not depend on the order of the vertices.
+//! its *associated points*: its neighbours along the arcs through it, and its projections onto
+//! the ellipsoids of the regions on either side of those arcs. All points are updated from the
+//! previous pass's positions (Jacobi), so the result does not depend on the order of the
+//! vertices.
+//!
+//! The paper projects radially (Π, section 2); here the projection is the closest point
+//! ([`Ellipsoid::closest_point`]), the map the decoder charts boundaries with
+//! ([`crate::remesh::chart::Projection::Closest`]). Along a ray from the centre of an
+//! elongated ellipsoid the radial projection of a point off the surface slides far along it
+//! (the ray meets the surface at a grazing angle), and the pull of those far points dragged
+//! boundaries across their regions until they folded in the decoder's charts: on the 12
+//! paper-scale meshes at K = 8, 12, 18 and 24 (48 files, without the encoder's decoder check,
+//! decoded before boundary heights were blended in), 18 decoded clean with radial projections
+//! and 27 with closest points. Where the two ellipsoids meet far from the mesh's boundary
+//! the relaxation still pulls toward them; the encoder's decoder check then stores that
+//! region's boundaries at the mesh's own points ([`crate::encode::EncodeSettings::verify`]).
 //!
 //! - An ordinary point between regions A and B has two neighbours and two projections; the
 //!   fixed point lies on (within the curve's own curvature of) the curve where A's and B's
@@ -103,7 +115,7 @@ pub fn smooth_boundaries(
                 count += 1;
             }
             for &r in links.regions(k) {
-                let q = ellipsoids[r as usize].project_radially(p);
+                let q = ellipsoids[r as usize].closest_point(p);
                 if q.is_finite() {
                     sum += q;
                     count += 1;
