@@ -5,8 +5,11 @@
 //! ellipsoids (Simari & Singh 2005, section 4.1) → [`Representation::from_boundary`] →
 //! [`Representation::simplify_arcs`] (Douglas–Peucker, the paper's future-work note) →
 //! [`format::encode`] (quantised, compressed, checksummed; `spec/ELLIP.md`) → the decoder
-//! check: the file is remeshed as a reader would, and regions that do not mesh cleanly are
-//! split ([`split_regions`]) and the file written again ([`EncodeSettings::verify`]).
+//! check: the file is remeshed as a reader would, and each region that does not mesh
+//! cleanly is mended and the file written again ([`EncodeSettings::verify`]): a region the
+//! decoder cannot chart gets its boundaries stored at the mesh's own points, then unsimplified;
+//! a small region is dissolved into its neighbours ([`dissolve_regions`]); any other is
+//! split ([`split_regions`]).
 
 use crate::boundary::{extract_boundaries, smooth_boundaries, BoundaryError, SmoothOptions};
 use crate::ellipsoid::Ellipsoid;
@@ -14,8 +17,8 @@ use crate::format::{self, simplify::DEFAULT_RELATIVE_TOLERANCE, EncodeError, Enc
 use crate::mesh::Mesh;
 use crate::representation::{InvalidRepresentation, Metadata, Representation};
 use crate::segment::{
-    segment_with, split_regions, Cut, EllipsoidMetric, Progress, SegmentError, SegmentOptions,
-    Segmentation, Split,
+    dissolve_regions, segment_with, split_regions, Cut, EllipsoidMetric, Progress, SegmentError,
+    SegmentOptions, Segmentation, Split,
 };
 use glam::DVec3;
 
@@ -36,11 +39,14 @@ pub struct EncodeSettings {
     /// ([`format::DEFAULT_BITS`] when the tolerance is 0).
     pub bits: Option<u8>,
     /// Decode the file as a reader would (default budget and limits) and, where a region
-    /// does not mesh cleanly (its boundary folds in its chart, or its triangles flip), split
-    /// it and write again, up to [`MAX_SPLIT_ROUNDS`] rounds and [`MAX_SPLIT_REGIONS`] more
-    /// regions (default true). The file may then hold more regions than asked for
-    /// ([`Encoded::verification`] says how many rounds it took and what, if anything, is
-    /// still wrong).
+    /// does not mesh cleanly, mend it and write again, up to [`MAX_SPLIT_ROUNDS`] rounds
+    /// (default true). A region whose boundary the decoder cannot chart (it folds, or two of
+    /// its loops touch) first has its boundaries stored at the mesh's own points rather than
+    /// smoothed, then every one of those points kept; a region of at most
+    /// [`SMALL_REGION_SHARE`] of the mean region's faces is dissolved into its neighbours;
+    /// any other is split (at most [`MAX_SPLIT_REGIONS`] more regions). The file may then
+    /// hold more or fewer regions than asked for ([`Encoded::verification`] says how many
+    /// rounds it took and what, if anything, is still wrong).
     pub verify: bool,
 }
 
@@ -136,7 +142,7 @@ pub fn encode_mesh(
         problem: None,
     };
     if !settings.verify {
-        let (stored, boundary_points) = represent(mesh, &segmentation, settings)?;
+        let (stored, boundary_points) = represent(mesh, &segmentation, settings, &[])?;
         return Ok(Encoded::new(
             stored,
             segmentation,
@@ -144,14 +150,16 @@ pub fn encode_mesh(
             verification,
         ));
     }
-    // Decode what was written; split the regions the decoder could not mesh cleanly and
-    // write again, until it decodes clean or the split budget is spent. Kept: the first
-    // clean encoding, else the best: one that decodes (with faults) over one that does not,
-    // then the fewest regions to blame, then the fewest regions.
+    // Decode what was written; mend the regions the decoder could not mesh cleanly and
+    // write again, until it decodes clean or the rounds are spent. Kept: the first clean
+    // encoding, else the best: one that decodes (with faults) over one that does not, then
+    // the fewest regions to blame, then the earliest.
     let max_added = MAX_SPLIT_REGIONS.max(requested);
     let mut best: Option<((u8, usize), Encoded)> = None;
+    // How faithfully each region's boundaries are stored, for the present segmentation.
+    let mut fidelity = vec![Fidelity::Smoothed; segmentation.region_count()];
     loop {
-        let (stored, boundary_points) = match represent(mesh, &segmentation, settings) {
+        let (stored, boundary_points) = match represent(mesh, &segmentation, settings, &fidelity) {
             Ok(r) => r,
             // A split whose boundaries the representation cannot hold (a bug of the boundary
             // stage, seen once on a real mesh): the encodings before it stand.
@@ -175,37 +183,94 @@ pub fn encode_mesh(
         if best.as_ref().is_none_or(|(s, _)| score < *s) {
             best = Some((score, candidate));
         }
-        // Hosts that can be split (at least two faces), within the budget.
-        let faces = segmentation.faces_by_region();
-        let room = (requested + max_added).saturating_sub(segmentation.region_count());
-        let hosts: Vec<Split> = blamed
-            .into_iter()
-            .filter(|s| faces.get(s.region as usize).is_some_and(|f| f.len() >= 2))
-            .take(room)
-            .collect();
-        if done || hosts.is_empty() || verification.rounds >= MAX_SPLIT_ROUNDS {
+        if done || blamed.is_empty() || verification.rounds >= MAX_SPLIT_ROUNDS {
             break;
         }
-        segmentation = split_regions(
-            mesh,
-            &metric,
-            &settings.segment,
-            &segmentation,
-            &hosts,
-            progress,
-        )?;
         verification.rounds += 1;
+        // A region whose boundary the decoder cannot chart (rank 2): smoothing toward the
+        // ellipsoids' intersections, or simplification, can move a boundary far enough from
+        // the mesh's to fold it, or to close the gap between two of its loops. Its
+        // boundaries are first stored at the mesh's points (simplified), then as the mesh
+        // has them.
+        let mut refined = false;
+        for s in &blamed {
+            if let Some(f) = fidelity.get_mut(s.region as usize).filter(|_| rank == 2) {
+                if let Some(next) = f.next() {
+                    *f = next;
+                    refined = true;
+                }
+            }
+        }
+        if refined {
+            continue;
+        }
+        // Small regions are dissolved into their neighbours (splitting them would only make
+        // smaller ones, whose fits go wilder still); the others are split, within the budget
+        // (hosts need at least two faces).
+        let faces = segmentation.faces_by_region();
+        let small = |r: u32| {
+            faces.get(r as usize).map_or(0, Vec::len) as f64
+                <= SMALL_REGION_SHARE * mesh.face_count() as f64 / requested.max(1) as f64
+        };
+        let tiny: Vec<u32> = blamed
+            .iter()
+            .map(|s| s.region)
+            .filter(|&r| small(r))
+            .collect();
+        let dissolved = if tiny.is_empty() {
+            None
+        } else {
+            dissolve_regions(
+                mesh,
+                &metric,
+                &settings.segment,
+                &segmentation,
+                &tiny,
+                progress,
+            )
+            .ok()
+        };
+        segmentation = match dissolved {
+            Some(s) => s,
+            None => {
+                let room = (requested + max_added).saturating_sub(segmentation.region_count());
+                let hosts: Vec<Split> = blamed
+                    .into_iter()
+                    .filter(|s| faces.get(s.region as usize).is_some_and(|f| f.len() >= 2))
+                    .take(room)
+                    .collect();
+                if hosts.is_empty() {
+                    break;
+                }
+                split_regions(
+                    mesh,
+                    &metric,
+                    &settings.segment,
+                    &segmentation,
+                    &hosts,
+                    progress,
+                )?
+            }
+        };
+        fidelity = vec![Fidelity::Smoothed; segmentation.region_count()];
     }
     // The loop keeps an encoding before it can break.
     best.map(|(_, encoded)| encoded)
         .ok_or_else(|| EncodeMeshError::Unreachable("internal error: no encoding was kept".into()))
 }
 
-/// Most rounds of region splitting [`encode_mesh`] runs to make its file decode clean.
+/// Most rounds of mending (boundaries stored more faithfully, regions dissolved or split)
+/// [`encode_mesh`] runs to make its file decode clean.
 pub const MAX_SPLIT_ROUNDS: usize = 12;
 
 /// Most regions the splitting may add: this many, or the requested count if larger.
 pub const MAX_SPLIT_REGIONS: usize = 16;
+
+/// A region the decoder cannot mesh cleanly is dissolved into its neighbours, not split,
+/// when it has at most this share of the mean region's faces (the mesh's faces over the
+/// regions asked for). Such regions are fitted with ellipsoids far smaller or flatter than
+/// the region is wide (creases, tips), and splitting them makes that worse.
+pub const SMALL_REGION_SHARE: f64 = 0.25;
 
 /// How the encoder checked its own file (see [`EncodeSettings::verify`]).
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
@@ -324,13 +389,39 @@ fn represent(
     mesh: &Mesh,
     segmentation: &Segmentation<Ellipsoid>,
     settings: &EncodeSettings,
+    fidelity: &[Fidelity],
 ) -> Result<(Stored, usize), EncodeMeshError> {
     let tolerance = settings.simplify_tolerance;
     let graph = extract_boundaries(mesh, &segmentation.labels, segmentation.region_count())?;
     let smoothed = smooth_boundaries(mesh, &graph, &segmentation.proxies, &settings.smooth)?;
     let mut positions = mesh.positions().to_vec();
+    // An arc is stored as faithfully as the more faithful of its two regions asks; arcs at
+    // the mesh's points keep them, junctions included.
+    let of = |r: u32| {
+        fidelity
+            .get(r as usize)
+            .copied()
+            .unwrap_or(Fidelity::Smoothed)
+    };
+    let arc_fidelity =
+        |left: u32, right: Option<u32>| of(left).max(right.map_or(Fidelity::Smoothed, of));
+    let mut keep = vec![false; mesh.vertex_count()];
+    let unsmoothed = graph.arcs.iter().filter(|a| {
+        let right = match a.right {
+            crate::boundary::Side::Region(r) => Some(r),
+            crate::boundary::Side::Border => None,
+        };
+        arc_fidelity(a.left, right) >= Fidelity::MeshPoints
+    });
+    for a in unsmoothed {
+        for &v in &a.vertices {
+            keep[v as usize] = true;
+        }
+    }
     for (&v, &p) in graph.vertices.iter().zip(&smoothed) {
-        positions[v as usize] = p;
+        if !keep[v as usize] {
+            positions[v as usize] = p;
+        }
     }
     let diagonal = mesh.bounding_box().map_or(0.0, |b| b.diagonal());
     let metadata = Metadata {
@@ -346,6 +437,20 @@ fn represent(
         Representation::from_boundary(segmentation.proxies.clone(), &positions, &graph, metadata)?;
     let boundary_points = representation.points.len();
     let absolute_tolerance = tolerance * diagonal;
+    let exact_arcs: Vec<bool> = representation
+        .arcs
+        .iter()
+        .map(|a| {
+            let right = match a.right {
+                crate::representation::Side::Region(r) => Some(r),
+                crate::representation::Side::Border => None,
+            };
+            arc_fidelity(a.left, right) == Fidelity::Exact
+        })
+        .collect();
+    let store = |representation: &Representation, absolute_tolerance: f64, bits: u8| {
+        store(representation, absolute_tolerance, bits, &exact_arcs)
+    };
     let stored = match settings.bits {
         Some(bits) => store(&representation, absolute_tolerance, bits)?,
         None if absolute_tolerance == 0.0 => {
@@ -377,6 +482,29 @@ fn represent(
     Ok((stored, boundary_points))
 }
 
+/// How faithfully a region's boundaries are stored. The encoder's decoder check raises it
+/// for regions the decoder cannot chart, one step a round.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+enum Fidelity {
+    /// Smoothed toward the ellipsoids (section 4.1) and simplified: the default.
+    Smoothed,
+    /// At the mesh's own points, simplified.
+    MeshPoints,
+    /// At the mesh's own points, every one kept (only the grid moves them).
+    Exact,
+}
+
+impl Fidelity {
+    /// The next, more faithful step, if any.
+    fn next(self) -> Option<Fidelity> {
+        match self {
+            Fidelity::Smoothed => Some(Fidelity::MeshPoints),
+            Fidelity::MeshPoints => Some(Fidelity::Exact),
+            Fidelity::Exact => None,
+        }
+    }
+}
+
 /// Grid resolutions the automatic choice tries. Coarser grids give smaller files still (9
 /// bits: hand at K = 18 in 1 982 bytes instead of 2 047) but their rounding noise, up to
 /// half the default tolerance, folds decoded boundaries: the torus fixture decoded with 58
@@ -392,12 +520,14 @@ struct Stored {
     bits: u8,
 }
 
-/// Simplifies the arcs with what the grid of `bits` leaves of the boundary tolerance
-/// (`absolute_tolerance`, model units; 0: no simplification) and writes the file.
+/// Simplifies the arcs (but those marked in `exact`) with what the grid of `bits` leaves of
+/// the boundary tolerance (`absolute_tolerance`, model units; 0: no simplification) and
+/// writes the file.
 fn store(
     representation: &Representation,
     absolute_tolerance: f64,
     bits: u8,
+    exact: &[bool],
 ) -> Result<Stored, EncodeMeshError> {
     let mut representation = representation.clone();
     // The boundary tolerance bounds a stored point's whole error: Douglas–Peucker gets what
@@ -416,7 +546,7 @@ fn store(
     }
     let removed_points = if absolute_tolerance > 0.0 {
         representation.metadata.simplify_tolerance = Some(simplify_tolerance);
-        representation.simplify_arcs(simplify_tolerance)
+        representation.simplify_arcs_except(simplify_tolerance, exact)
     } else {
         0
     };
@@ -680,6 +810,114 @@ pub fn encode_to_target(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The decoder check's fallbacks for a region it cannot chart: its arcs at the mesh's
+    /// own points (simplified), then every one of them; the other arcs stay smoothed.
+    #[test]
+    fn boundaries_are_stored_as_faithfully_as_their_regions_ask() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/meshes/blob3.obj");
+        let mesh = crate::import::read_mesh(&path, &crate::import::ImportOptions::default())
+            .unwrap()
+            .mesh;
+        let settings = EncodeSettings {
+            segment: crate::segment::SegmentOptions {
+                regions: crate::segment::RegionCount::Fixed(5),
+                max_iterations: 10,
+                ..Default::default()
+            },
+            verify: false,
+            ..EncodeSettings::default()
+        };
+        let metric = EllipsoidMetric::new(&mesh, &settings.segment).unwrap();
+        let seg = segment_with(&mesh, &metric, &settings.segment, &mut |_| {}).unwrap();
+        let graph = extract_boundaries(&mesh, &seg.labels, seg.region_count()).unwrap();
+        let chosen = 1u32;
+        let touches = |left: u32, right: Option<u32>| left == chosen || right == Some(chosen);
+        // Stored points on arcs of the chosen region, and on the others, by how far they lie
+        // from the nearest mesh vertex of those arcs.
+        let mesh_points: Vec<DVec3> = graph
+            .arcs
+            .iter()
+            .filter(|a| {
+                touches(
+                    a.left,
+                    match a.right {
+                        crate::boundary::Side::Region(r) => Some(r),
+                        _ => None,
+                    },
+                )
+            })
+            .flat_map(|a| a.vertices.iter().map(|&v| mesh.positions()[v as usize]))
+            .collect();
+        let stored = |f: Fidelity| {
+            let mut fidelity = vec![Fidelity::Smoothed; seg.region_count()];
+            fidelity[chosen as usize] = f;
+            represent(&mesh, &seg, &settings, &fidelity)
+                .unwrap()
+                .0
+                .representation
+        };
+        let grid = |rep: &Representation| format::Grid::around(&rep.points, 16).error_bound();
+        let arcs_of = |rep: &Representation| -> (Vec<u32>, usize) {
+            let mut points = Vec::new();
+            let mut count = 0;
+            for a in &rep.arcs {
+                let right = match a.right {
+                    crate::representation::Side::Region(r) => Some(r),
+                    _ => None,
+                };
+                if touches(a.left, right) {
+                    points.extend(a.points.iter().copied());
+                    count += a.points.len();
+                }
+            }
+            (points, count)
+        };
+        let nearest = |p: DVec3| {
+            mesh_points
+                .iter()
+                .map(|q| q.distance(p))
+                .fold(f64::INFINITY, f64::min)
+        };
+        let diagonal = mesh.bounding_box().unwrap().diagonal();
+        // Smoothed: some points move off the mesh.
+        let smoothed = stored(Fidelity::Smoothed);
+        let (points, _) = arcs_of(&smoothed);
+        assert!(points
+            .iter()
+            .any(|&i| nearest(smoothed.points[i as usize]) > 1e-3 * diagonal));
+        // At the mesh's points: every stored point is one (up to the grid's rounding, which
+        // `represent` leaves to the file: the representation is before quantisation).
+        let at_mesh = stored(Fidelity::MeshPoints);
+        let (points, simplified) = arcs_of(&at_mesh);
+        for &i in &points {
+            let p = at_mesh.points[i as usize];
+            assert!(nearest(p) <= grid(&at_mesh) + 1e-12, "{p}");
+        }
+        // Exact: and none is dropped (arcs are stored with all their mesh vertices).
+        let exact = stored(Fidelity::Exact);
+        let (points, kept) = arcs_of(&exact);
+        for &i in &points {
+            assert!(nearest(exact.points[i as usize]) <= grid(&exact) + 1e-12);
+        }
+        let all: usize = graph
+            .arcs
+            .iter()
+            .filter(|a| {
+                touches(
+                    a.left,
+                    match a.right {
+                        crate::boundary::Side::Region(r) => Some(r),
+                        _ => None,
+                    },
+                )
+            })
+            .map(|a| a.vertices.len())
+            .sum();
+        assert_eq!(kept, all);
+        assert!(simplified < kept, "{simplified} of {kept}");
+    }
 
     #[test]
     fn the_cut_between_a_fold_s_sheets_lies_halfway_and_faces_across() {

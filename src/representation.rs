@@ -395,6 +395,12 @@ impl Representation {
     ///
     /// Returns how many pool points were removed.
     pub fn simplify_arcs(&mut self, tolerance: f64) -> usize {
+        self.simplify_arcs_except(tolerance, &[])
+    }
+
+    /// [`Representation::simplify_arcs`], leaving whole the arcs whose index is marked in
+    /// `exact` (indices beyond its length are simplified).
+    pub fn simplify_arcs_except(&mut self, tolerance: f64, exact: &[bool]) -> usize {
         let mut uses = vec![0u32; self.points.len()];
         for a in &self.arcs {
             for &i in &a.points {
@@ -404,7 +410,10 @@ impl Representation {
             }
         }
         let points = &self.points;
-        for a in &mut self.arcs {
+        for (index, a) in self.arcs.iter_mut().enumerate() {
+            if exact.get(index).copied().unwrap_or(false) {
+                continue;
+            }
             let Some(chain) = a
                 .points
                 .iter()

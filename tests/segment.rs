@@ -6,8 +6,8 @@
 use ellip::ellipsoid::{Ellipsoid, Sign};
 use ellip::import::{read_mesh, ImportOptions};
 use ellip::segment::{
-    segment, segment_with, split_regions, Cut, EllipsoidMetric, Mode, Progress, ProxyMetric,
-    RegionCount, SegmentError, SegmentOptions, Segmentation, Split, WeightOverrides,
+    dissolve_regions, segment, segment_with, split_regions, Cut, EllipsoidMetric, Mode, Progress,
+    ProxyMetric, RegionCount, SegmentError, SegmentOptions, Segmentation, Split, WeightOverrides,
 };
 use ellip::synth::blob::distance_to_ellipsoid;
 use ellip::synth::EllipsoidSpec;
@@ -627,4 +627,83 @@ fn splitting_refuses_bad_hosts() {
             Err(SegmentError::InvalidOption { .. })
         ));
     }
+}
+
+#[test]
+fn dissolving_a_region_hands_its_faces_to_its_neighbours() {
+    let mesh = fixture("blob3");
+    let options = fixed(6, 20);
+    let metric = EllipsoidMetric::new(&mesh, &options).unwrap();
+    let before = segment_with(&mesh, &metric, &options, &mut |_| {}).unwrap();
+    let gone = 2u32;
+    let dissolve =
+        || dissolve_regions(&mesh, &metric, &options, &before, &[gone], &mut |_| {}).unwrap();
+    let after = dissolve();
+    assert_eq!(after.region_count(), before.region_count() - 1);
+    check_partition(&mesh, &after);
+    // Faces of the other regions keep their region (renumbered past the dissolved one); the
+    // dissolved region's faces go to regions that bordered it.
+    let renumber = |r: u32| if r > gone { r - 1 } else { r };
+    let t = mesh.topology();
+    let mut neighbours = BTreeSet::new();
+    for (f, &r) in before.labels.iter().enumerate() {
+        if r == gone {
+            for g in t.neighbors(f) {
+                let other = before.labels[g as usize];
+                if other != gone {
+                    neighbours.insert(renumber(other));
+                }
+            }
+        }
+    }
+    for (f, (&a, &b)) in before.labels.iter().zip(&after.labels).enumerate() {
+        if a == gone {
+            assert!(
+                neighbours.contains(&b),
+                "face {f} went to region {b}, not a neighbour"
+            );
+        } else {
+            assert_eq!(
+                renumber(a),
+                b,
+                "face {f} outside the dissolved region moved"
+            );
+        }
+    }
+    // The other regions keep their proxies unless they took faces.
+    for r in 0..before.region_count() as u32 {
+        if r != gone && !neighbours.contains(&renumber(r)) {
+            assert_eq!(
+                before.proxies[r as usize],
+                after.proxies[renumber(r) as usize]
+            );
+        }
+    }
+    assert_eq!(after.labels, dissolve().labels, "deterministic");
+}
+
+#[test]
+fn dissolving_refuses_bad_regions() {
+    let mesh = fixture("blob2");
+    let options = fixed(3, 5);
+    let metric = EllipsoidMetric::new(&mesh, &options).unwrap();
+    let s = segment_with(&mesh, &metric, &options, &mut |_| {}).unwrap();
+    for removed in [&[3u32][..], &[0, 0], &[u32::MAX], &[0, 1, 2]] {
+        assert!(
+            matches!(
+                dissolve_regions(&mesh, &metric, &options, &s, removed, &mut |_| {}),
+                Err(SegmentError::InvalidOption { .. })
+            ),
+            "{removed:?}"
+        );
+    }
+    // The only region of a component cannot go: its faces have no neighbour to go to.
+    let spheres = separated_spheres(false);
+    let options = fixed(2, 3);
+    let metric = EllipsoidMetric::new(&spheres, &options).unwrap();
+    let s = segment_with(&spheres, &metric, &options, &mut |_| {}).unwrap();
+    assert!(matches!(
+        dissolve_regions(&spheres, &metric, &options, &s, &[0], &mut |_| {}),
+        Err(SegmentError::InvalidOption { .. })
+    ));
 }

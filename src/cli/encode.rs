@@ -42,9 +42,10 @@ pub struct EncodeArgs {
     #[arg(long, value_name = "N")]
     max_bytes: Option<usize>,
     /// Write the segmentation as it is, without decoding the file to check it. By default
-    /// the encoder decodes what it wrote and splits each region that does not mesh cleanly
-    /// (its boundary folds in its chart, or its triangles flip), so the file may hold more
-    /// regions than -k asks for.
+    /// the encoder decodes what it wrote and mends each region that does not mesh cleanly:
+    /// a boundary that folds in its chart is stored at the mesh's own points, a small region
+    /// is dissolved into its neighbours, another is split; so the file may hold more or
+    /// fewer regions than -k asks for.
     #[arg(long)]
     no_verify: bool,
     /// Print the report as JSON on stdout (not with `-o -`).
@@ -65,10 +66,11 @@ struct EncodeReport {
     vertices: usize,
     faces: usize,
     regions: usize,
-    /// Regions the segmentation was asked for; `regions` is larger when the decoder check
-    /// split some.
+    /// Regions the segmentation was asked for; `regions` differs when the decoder check
+    /// split or dissolved some.
     requested_regions: usize,
-    /// Rounds of region splitting the decoder check needed.
+    /// Rounds of mending the decoder check needed (the name is kept from when every round
+    /// split regions).
     split_rounds: usize,
     /// "clean", "not checked" (--no-verify), or what is still wrong with the decoded file.
     decode_check: String,
@@ -235,7 +237,7 @@ pub fn run(args: &EncodeArgs) -> Result<(), CliError> {
     if let (Some(problem), false) = (&encoded.verification.problem, args.quiet) {
         eprintln!(
             "warning: {}: the file {problem} at its default density, even after {} rounds of \
-             splitting regions",
+             mending regions",
             report.output, encoded.verification.rounds
         );
     }
@@ -250,7 +252,7 @@ fn print_report(r: &EncodeReport) {
     );
     if r.regions != r.requested_regions {
         eprintln!(
-            "{} regions asked for, {} stored: {} round(s) split the regions the decoder could not mesh cleanly",
+            "{} regions asked for, {} stored: {} round(s) mended the regions the decoder could not mesh cleanly",
             r.requested_regions, r.regions, r.split_rounds
         );
     }

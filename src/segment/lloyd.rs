@@ -267,6 +267,127 @@ pub(super) fn split<M: ProxyMetric>(
     Ok(lloyd.finish())
 }
 
+/// Removes regions from a segmentation: the faces of each region in `removed` go to the
+/// regions around them (flooded from their borders by the same priority queue as a round),
+/// the remaining regions are renumbered in order, then [`SPLIT_ROUNDS`] rounds of the loop,
+/// warm-started from `segmentation`, settle the new borders; only the removed regions' faces
+/// change region. Refused: an index out of range or repeated, or a region whose removal
+/// would leave faces no other region can reach (the only region of its component).
+pub(super) fn dissolve<M: ProxyMetric>(
+    mesh: &Mesh,
+    metric: &M,
+    options: &SegmentOptions,
+    segmentation: &Segmentation<M::Proxy>,
+    removed: &[u32],
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Segmentation<M::Proxy>, SegmentError> {
+    let count = segmentation.region_count();
+    if segmentation.labels.len() != mesh.face_count()
+        || segmentation.region_errors.len() != count
+        || segmentation.labels.iter().any(|&r| r as usize >= count)
+    {
+        return Err(SegmentError::InvalidOption {
+            what: "segmentation",
+            value: "not a segmentation of this mesh".into(),
+        });
+    }
+    let mut gone = vec![false; count];
+    for &r in removed {
+        match gone.get_mut(r as usize) {
+            Some(g) if !*g => *g = true,
+            _ => {
+                return Err(SegmentError::InvalidOption {
+                    what: "dissolve",
+                    value: format!("region {r} (out of range or repeated)"),
+                })
+            }
+        }
+    }
+    // Old region → new number (NONE for the removed ones).
+    let mut renumber = vec![NONE; count];
+    let mut next = 0u32;
+    for (r, slot) in renumber.iter_mut().enumerate() {
+        if !gone[r] {
+            *slot = next;
+            next += 1;
+        }
+    }
+    let kept = next as usize;
+    if kept == 0 {
+        return Err(SegmentError::InvalidOption {
+            what: "dissolve",
+            value: "every region".into(),
+        });
+    }
+    let target = Target {
+        cap: kept,
+        distance: None,
+    };
+    let mut lloyd = Lloyd::new(mesh, metric, options, target, progress)?;
+    let proxies: Vec<M::Proxy> = kept_items(&segmentation.proxies, &gone);
+    let mut labels: Vec<u32> = segmentation
+        .labels
+        .iter()
+        .map(|&r| renumber[r as usize])
+        .collect();
+    // Every face's error against the regions around it, then the flooding from the kept
+    // regions' faces into the freed ones.
+    let provisional: Vec<u32> = labels
+        .iter()
+        .map(|&l| if l == NONE { kept as u32 } else { l })
+        .collect();
+    lloyd.evaluate(&provisional, &proxies);
+    let mut heap = BinaryHeap::new();
+    lloyd.grow(&mut heap, &mut labels, &proxies);
+    if labels.contains(&NONE) {
+        return Err(SegmentError::InvalidOption {
+            what: "dissolve",
+            value: "a region no other region borders (the only one of its component)".into(),
+        });
+    }
+    let previous = State {
+        labels: segmentation
+            .labels
+            .iter()
+            .map(|&r| {
+                if gone[r as usize] {
+                    NONE
+                } else {
+                    renumber[r as usize]
+                }
+            })
+            .collect(),
+        errors: kept_items(&segmentation.region_errors, &gone),
+        proxies,
+        settled: vec![true; kept],
+        total: segmentation.total_error,
+        meets: true,
+    };
+    let mut state = lloyd.fit_state(labels, kept, Some(&previous));
+    lloyd.record(&state, 0);
+    lloyd.frozen = segmentation
+        .labels
+        .iter()
+        .map(|&r| !gone[r as usize])
+        .collect();
+    for _ in 0..SPLIT_ROUNDS {
+        state = lloyd.round(&state);
+        lloyd.iterations += 1;
+        lloyd.record(&state, lloyd.iterations);
+    }
+    Ok(lloyd.finish())
+}
+
+/// The items whose index is not `gone`, in order.
+fn kept_items<T: Clone>(items: &[T], gone: &[bool]) -> Vec<T> {
+    items
+        .iter()
+        .zip(gone)
+        .filter(|(_, &g)| !g)
+        .map(|(x, _)| x.clone())
+        .collect()
+}
+
 impl<'a, M: ProxyMetric> Lloyd<'a, M> {
     fn new(
         mesh: &'a Mesh,

@@ -240,3 +240,21 @@ pub fn split_regions<M: ProxyMetric>(
 ) -> Result<Segmentation<M::Proxy>, SegmentError> {
     lloyd::split(mesh, metric, options, segmentation, hosts, progress)
 }
+
+/// Removes regions of a segmentation: the faces of each region in `removed` go to the regions
+/// around them, the others are renumbered in order (their relative order kept), and three
+/// Lloyd rounds, warm-started from `segmentation`, settle the new borders; only the removed
+/// regions' faces change region. The encoder uses it for small regions its decoder cannot
+/// mesh cleanly, where a split would only make smaller ones (see
+/// [`crate::encode::encode_mesh`]). Refused: an index out of range or repeated, or the only
+/// region of a connected component.
+pub fn dissolve_regions<M: ProxyMetric>(
+    mesh: &Mesh,
+    metric: &M,
+    options: &SegmentOptions,
+    segmentation: &Segmentation<M::Proxy>,
+    removed: &[u32],
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Segmentation<M::Proxy>, SegmentError> {
+    lloyd::dissolve(mesh, metric, options, segmentation, removed, progress)
+}
