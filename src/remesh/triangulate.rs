@@ -902,17 +902,25 @@ fn arc_z_range(a: DVec3, b: DVec3) -> (f64, f64) {
     (low, high)
 }
 
+/// Most pieces (of at most a cell each) the boundary is cut into by [`SegmentGrid::new`].
+const MAX_GRID_PIECES: f64 = (1u64 << 14) as f64;
+
 /// Boundary segments (unit-sphere chords) bucketed in a uniform grid of cells as large as
 /// the clearance, to find the grid points closer than that to the boundary.
 struct SegmentGrid<'a> {
     segments: &'a [[DVec3; 2]],
+    clearance: f64,
     cell: f64,
     cells: HashMap<[i64; 3], Vec<u32>>,
 }
 
 impl<'a> SegmentGrid<'a> {
     fn new(segments: &'a [[DVec3; 2]], clearance: f64) -> SegmentGrid<'a> {
-        let cell = clearance.max(1e-9);
+        // Cells as large as the clearance, or larger where the boundary is so long that the
+        // pieces would outnumber MAX_GRID_PIECES (a hostile file's tiny clearance once asked
+        // for gigabytes); a larger cell only lists more segments per cell.
+        let length: f64 = segments.iter().map(|&[a, b]| a.distance(b)).sum();
+        let cell = clearance.max(1e-9).max(length / MAX_GRID_PIECES);
         let mut cells: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
         for (index, &[a, b]) in segments.iter().enumerate() {
             // Pieces no longer than a cell, each registered in the cells its box (grown by
@@ -937,6 +945,7 @@ impl<'a> SegmentGrid<'a> {
         }
         SegmentGrid {
             segments,
+            clearance,
             cell,
             cells,
         }
@@ -949,7 +958,7 @@ impl<'a> SegmentGrid<'a> {
 
     /// Whether `u` lies closer than the clearance to a boundary segment.
     fn is_near(&self, u: DVec3) -> bool {
-        let clearance = self.cell;
+        let clearance = self.clearance;
         self.cells
             .get(&Self::key(u, self.cell))
             .is_some_and(|list| {
