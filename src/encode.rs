@@ -406,13 +406,10 @@ fn represent(
     let arc_fidelity =
         |left: u32, right: Option<u32>| of(left).max(right.map_or(Fidelity::Smoothed, of));
     let mut keep = vec![false; mesh.vertex_count()];
-    let unsmoothed = graph.arcs.iter().filter(|a| {
-        let right = match a.right {
-            crate::boundary::Side::Region(r) => Some(r),
-            crate::boundary::Side::Border => None,
-        };
-        arc_fidelity(a.left, right) >= Fidelity::MeshPoints
-    });
+    let unsmoothed = graph
+        .arcs
+        .iter()
+        .filter(|a| arc_fidelity(a.left, a.right.region()) >= Fidelity::MeshPoints);
     for a in unsmoothed {
         for &v in &a.vertices {
             keep[v as usize] = true;
@@ -440,13 +437,7 @@ fn represent(
     let exact_arcs: Vec<bool> = representation
         .arcs
         .iter()
-        .map(|a| {
-            let right = match a.right {
-                crate::representation::Side::Region(r) => Some(r),
-                crate::representation::Side::Border => None,
-            };
-            arc_fidelity(a.left, right) == Fidelity::Exact
-        })
+        .map(|a| arc_fidelity(a.left, a.right.region()) == Fidelity::Exact)
         .collect();
     let store = |representation: &Representation, absolute_tolerance: f64, bits: u8| {
         store(representation, absolute_tolerance, bits, &exact_arcs)
@@ -839,15 +830,7 @@ mod tests {
         let mesh_points: Vec<DVec3> = graph
             .arcs
             .iter()
-            .filter(|a| {
-                touches(
-                    a.left,
-                    match a.right {
-                        crate::boundary::Side::Region(r) => Some(r),
-                        _ => None,
-                    },
-                )
-            })
+            .filter(|a| touches(a.left, a.right.region()))
             .flat_map(|a| a.vertices.iter().map(|&v| mesh.positions()[v as usize]))
             .collect();
         let stored = |f: Fidelity| {
@@ -863,11 +846,7 @@ mod tests {
             let mut points = Vec::new();
             let mut count = 0;
             for a in &rep.arcs {
-                let right = match a.right {
-                    crate::representation::Side::Region(r) => Some(r),
-                    _ => None,
-                };
-                if touches(a.left, right) {
+                if touches(a.left, a.right.region()) {
                     points.extend(a.points.iter().copied());
                     count += a.points.len();
                 }
@@ -904,15 +883,7 @@ mod tests {
         let all: usize = graph
             .arcs
             .iter()
-            .filter(|a| {
-                touches(
-                    a.left,
-                    match a.right {
-                        crate::boundary::Side::Region(r) => Some(r),
-                        _ => None,
-                    },
-                )
-            })
+            .filter(|a| touches(a.left, a.right.region()))
             .map(|a| a.vertices.len())
             .sum();
         assert_eq!(kept, all);

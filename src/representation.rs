@@ -47,6 +47,16 @@ pub enum Side {
     Border,
 }
 
+impl Side {
+    /// The region on this side, if any.
+    pub fn region(self) -> Option<u32> {
+        match self {
+            Side::Region(r) => Some(r),
+            Side::Border => None,
+        }
+    }
+}
+
 /// A boundary curve: a chain of pool points between two junctions, or a closed loop.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Arc {

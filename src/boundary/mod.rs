@@ -71,6 +71,16 @@ pub enum Side {
     Border,
 }
 
+impl Side {
+    /// The region on this side, if any.
+    pub fn region(self) -> Option<u32> {
+        match self {
+            Side::Region(r) => Some(r),
+            Side::Border => None,
+        }
+    }
+}
+
 /// A chain of boundary edges between two junctions, or a closed loop.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct Arc {

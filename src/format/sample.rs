@@ -346,7 +346,7 @@ pub fn build(recipe: &Recipe) -> Representation {
                     right,
                 });
                 let has_outer = |cs: &Vec<Cycle>| cs.iter().any(|c| c.outer);
-                for (region, reversed) in [(Some(left), false), (right_region(right), true)] {
+                for (region, reversed) in [(Some(left), false), (right.region(), true)] {
                     if let Some(cs) = region.and_then(|r| rep.cycles.get_mut(r as usize)) {
                         let mut c = cycle(vec![(arc, reversed)]);
                         c.outer = !has_outer(cs);
@@ -388,13 +388,6 @@ pub fn build(recipe: &Recipe) -> Representation {
         ..recipe.metadata.clone()
     };
     rep
-}
-
-fn right_region(side: Side) -> Option<u32> {
-    match side {
-        Side::Region(r) => Some(r),
-        Side::Border => None,
-    }
 }
 
 #[cfg(test)]

@@ -428,11 +428,12 @@ impl Plan<'_> {
                 }
                 Err(e) => return Err(e),
             };
-            // Meshed on a stand-in, the points go back onto the region's ellipsoid.
-            let lift = if stand_in == *ellipsoid {
-                Lift::None
-            } else {
-                Lift::Radial(*ellipsoid)
+            // Meshed on a stand-in, the points go back onto the region's ellipsoid the way
+            // the boundary came to the stand-in.
+            let lift = match chart.projection() {
+                _ if stand_in == *ellipsoid => Lift::None,
+                Projection::NormalOnto(e) => Lift::Closest(e),
+                _ => Lift::Radial(*ellipsoid),
             };
             let surface = RegionSurface::lifted(chart, lift);
             pieces.push(Piece::new(region, surface, &loops, &pool.positions, area));
@@ -497,11 +498,7 @@ fn untangle(
                 let min_len = if a.closed { 3 } else { 2 };
                 if chain.len() > min_len && at < chain.len() {
                     chain.remove(at);
-                    let right = match a.right {
-                        Side::Region(r) => Some(r),
-                        Side::Border => None,
-                    };
-                    for side in [Some(a.left), right] {
+                    for side in [Some(a.left), a.right.region()] {
                         if let Some(flag) = side.and_then(|r| changed.get_mut(r as usize)) {
                             *flag = true;
                         }
@@ -856,9 +853,10 @@ const MAX_RADIUS_TO_REACH: f64 = 4.0;
 /// is far longer than the region's reach (fits to nearly flat or cylindrical parts give radii
 /// of thousands); the unit-sphere map then squeezes the region into a sliver where quantised
 /// boundary points cross. The stand-in has the same centre, rotation and sign and its radii
-/// capped at [`MAX_RADIUS_TO_REACH`] times the reach: the same rays through the same centre,
-/// spread evenly, so the region's shape in the chart is sound; interior points are moved
-/// back onto the real ellipsoid along their rays when the pieces are joined.
+/// capped at [`MAX_RADIUS_TO_REACH`] times the reach, so the region's shape in the chart is
+/// sound; interior points go back onto the real ellipsoid the way boundary points came to
+/// the stand-in ([`projection_onto`]): to their closest points, or along the rays from the
+/// centre.
 fn chart_surface(e: &Ellipsoid, loops: &[Vec<DVec3>]) -> Ellipsoid {
     let reach = loops
         .iter()
@@ -876,16 +874,21 @@ fn chart_surface(e: &Ellipsoid, loops: &[Vec<DVec3>]) -> Ellipsoid {
 }
 
 /// How boundary points reach a chart's surface: as `preferred` on the region's own
-/// ellipsoid; on a stand-in ([`chart_surface`]), whose interior points go back to the real
-/// ellipsoid along the rays, the closest point is taken on the real ellipsoid and carried
-/// along its ray, so that both agree.
+/// ellipsoid. On a stand-in ([`chart_surface`]) with the closest points preferred, the
+/// closest point is taken on the real ellipsoid and carried along its inward normal to the
+/// stand-in, and interior points go back to their closest points on the real ellipsoid
+/// ([`Lift::Closest`]): the stand-in's cross-sections are the real one's where the region
+/// is, so that map barely stretches (along the rays from the centre, a region far out
+/// along a nearly cylindrical ellipsoid was stretched into triangles a fifth of the
+/// diagonal long, folded round the cylinder). With radial projections preferred, both go
+/// along the rays.
 fn projection_onto(
     surface: &Ellipsoid,
     ellipsoid: &Ellipsoid,
     preferred: Projection,
 ) -> Projection {
     match preferred {
-        Projection::Closest if surface != ellipsoid => Projection::ClosestOnto(*ellipsoid),
+        Projection::Closest if surface != ellipsoid => Projection::NormalOnto(*ellipsoid),
         other => other,
     }
 }

@@ -68,10 +68,12 @@ pub enum Projection {
     Closest,
     /// Along the ray from the centre (Π, paper section 2).
     Radial,
-    /// The closest point on this ellipsoid, then along its ray: for a stand-in chart surface
-    /// that shares the real ellipsoid's centre and rays but not its radii, so that boundary
-    /// points reach the stand-in where interior points are lifted back from.
-    ClosestOnto(Ellipsoid),
+    /// The closest point on this ellipsoid (the region's own), then along its inward normal
+    /// onto the chart's surface (a stand-in inside it): the inverse of lifting the stand-in's
+    /// points to their closest points on this ellipsoid
+    /// ([`super::surface::Lift::Closest`]). Where the normal misses the stand-in, along the
+    /// ray from the centre.
+    NormalOnto(Ellipsoid),
 }
 
 impl RegionChart {
@@ -177,6 +179,11 @@ impl RegionChart {
         self.empty
     }
 
+    /// How the chart maps points off its surface (boundary points) onto it.
+    pub fn projection(&self) -> Projection {
+        self.projection
+    }
+
     /// The pole: the unit-sphere direction the projection sends to infinity.
     pub fn pole(&self) -> DVec3 {
         self.rotation.inverse() * DVec3::Z
@@ -206,7 +213,15 @@ impl RegionChart {
         let surface = match self.projection {
             Projection::Closest => self.ellipsoid.closest_point(p),
             Projection::Radial => p,
-            Projection::ClosestOnto(real) => real.closest_point(p),
+            Projection::NormalOnto(real) => {
+                let x = real.closest_point(p);
+                let inward = -real.outward_normal(x);
+                // The first crossing ahead (the stand-in lies inside the real ellipsoid).
+                self.ellipsoid
+                    .intersect_ray(x, inward)
+                    .and_then(|ts| ts.into_iter().find(|t| *t >= 0.0))
+                    .map_or(x, |t| x + t * inward)
+            }
         };
         self.ellipsoid
             .to_unit_sphere(surface)

@@ -20,7 +20,7 @@
 //! spacing is widened first so that the spacing rule alone stays within that cap).
 
 use crate::ellipsoid::Ellipsoid;
-use crate::representation::{Representation, Side};
+use crate::representation::Representation;
 use glam::DVec3;
 
 /// Deepest bisection of one stored segment (at most 2^MAX_DEPTH − 1 new points in it).
@@ -68,10 +68,10 @@ pub fn refine_arcs(rep: &Representation, settings: &RefineSettings) -> RefinedBo
     let mut budget = settings.max_new_points;
     for arc in &rep.arcs {
         let left = rep.ellipsoids.get(arc.left as usize);
-        let right = match arc.right {
-            Side::Region(r) => rep.ellipsoids.get(r as usize),
-            Side::Border => None,
-        };
+        let right = arc
+            .right
+            .region()
+            .and_then(|r| rep.ellipsoids.get(r as usize));
         let Some(left) = left else {
             arcs.push(arc.points.clone());
             continue;
@@ -338,7 +338,7 @@ pub fn project_to_intersection(e1: &Ellipsoid, e2: &Ellipsoid, p: DVec3) -> Opti
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::representation::{Arc, ArcRef, Cycle, Metadata};
+    use crate::representation::{Arc, ArcRef, Cycle, Metadata, Side};
 
     /// Two unit spheres whose centres are 1 apart meet on a circle of radius √3/2 in the
     /// plane x = 0.5.

@@ -46,6 +46,9 @@ pub enum Lift {
     /// The chart is on a stand-in with the region's centre: along the ray from the centre
     /// onto this ellipsoid (the region's own).
     Radial(Ellipsoid),
+    /// The chart is on a stand-in inside this ellipsoid (the region's own): to the closest
+    /// point on it.
+    Closest(Ellipsoid),
     /// The chart is on a sphere seen from `origin`: along the ray from `origin`, the
     /// crossing with this ellipsoid nearest to the chart's point.
     FromPoint {
@@ -62,6 +65,7 @@ impl Lift {
         match *self {
             Lift::None => p,
             Lift::Radial(e) => e.project_radially(p),
+            Lift::Closest(e) => e.closest_point(p),
             Lift::FromPoint { origin, ellipsoid } => {
                 let best = ellipsoid.intersect_ray(origin, p - origin).and_then(|ts| {
                     ts.into_iter()
@@ -125,7 +129,7 @@ impl RegionSurface {
     pub fn ellipsoid(&self) -> &Ellipsoid {
         match &self.lift {
             Lift::None => &self.chart.ellipsoid,
-            Lift::Radial(e) | Lift::FromPoint { ellipsoid: e, .. } => e,
+            Lift::Radial(e) | Lift::Closest(e) | Lift::FromPoint { ellipsoid: e, .. } => e,
         }
     }
 

@@ -198,6 +198,25 @@ pub(super) fn run<M: ProxyMetric>(
 /// seeding, left the new regions ragged; three let them settle).
 pub const SPLIT_ROUNDS: usize = 3;
 
+/// The region count of `segmentation` if it is one of `mesh` (a label per face, each in
+/// range, an error per region); what [`split`] and [`dissolve`] are given is checked so.
+fn check_segmentation<P>(
+    mesh: &Mesh,
+    segmentation: &Segmentation<P>,
+) -> Result<usize, SegmentError> {
+    let count = segmentation.region_count();
+    if segmentation.labels.len() != mesh.face_count()
+        || segmentation.region_errors.len() != count
+        || segmentation.labels.iter().any(|&r| r as usize >= count)
+    {
+        return Err(SegmentError::InvalidOption {
+            what: "segmentation",
+            value: "not a segmentation of this mesh".into(),
+        });
+    }
+    Ok(count)
+}
+
 /// Adds one region inside each of `hosts` (the host cut in two; see [`Lloyd::halve`]), then
 /// relaxes [`SPLIT_ROUNDS`] rounds of the loop, warm-started from `segmentation`, in which
 /// only the hosts' faces change region. The new regions are numbered after the existing
@@ -211,16 +230,7 @@ pub(super) fn split<M: ProxyMetric>(
     hosts: &[Split],
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Segmentation<M::Proxy>, SegmentError> {
-    let count = segmentation.region_count();
-    if segmentation.labels.len() != mesh.face_count()
-        || segmentation.region_errors.len() != count
-        || segmentation.labels.iter().any(|&r| r as usize >= count)
-    {
-        return Err(SegmentError::InvalidOption {
-            what: "segmentation",
-            value: "not a segmentation of this mesh".into(),
-        });
-    }
+    let count = check_segmentation(mesh, segmentation)?;
     let mut sizes = vec![0usize; count];
     for &r in &segmentation.labels {
         sizes[r as usize] += 1;
@@ -281,16 +291,7 @@ pub(super) fn dissolve<M: ProxyMetric>(
     removed: &[u32],
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Segmentation<M::Proxy>, SegmentError> {
-    let count = segmentation.region_count();
-    if segmentation.labels.len() != mesh.face_count()
-        || segmentation.region_errors.len() != count
-        || segmentation.labels.iter().any(|&r| r as usize >= count)
-    {
-        return Err(SegmentError::InvalidOption {
-            what: "segmentation",
-            value: "not a segmentation of this mesh".into(),
-        });
-    }
+    let count = check_segmentation(mesh, segmentation)?;
     let mut gone = vec![false; count];
     for &r in removed {
         match gone.get_mut(r as usize) {
