@@ -380,7 +380,7 @@ impl Plan<'_> {
                     // Consecutive open arcs share their junction: skip each one's first point.
                     lp.extend(ids.into_iter().skip(usize::from(!closed)));
                 }
-                let lp = without_repeats(lp);
+                let lp = without_spikes(without_repeats(lp));
                 // Two arcs that are the same segment between two junctions enclose nothing:
                 // the loop is dropped, and the regions on its other sides, which see the
                 // same segment the other way, are glued directly. Without its outer loop
@@ -687,6 +687,34 @@ fn without_repeats(ids: Vec<u32>) -> Vec<u32> {
         out.pop();
     }
     out
+}
+
+/// `ids`, a closed loop without consecutive repeats, without its spikes: wherever it runs
+/// to a point and straight back (u → v → u), v and the return are dropped, until none is
+/// left. A spike encloses nothing, and its edge, used twice, cannot be a constraint of the
+/// region's triangulation twice; it comes from a non-manifold edge (a border to each of its
+/// faces) that a region touches from two sides, or two arcs between the same junctions
+/// simplified to the same segment.
+fn without_spikes(mut ids: Vec<u32>) -> Vec<u32> {
+    let mut i = 0;
+    // Each removal shortens the loop by two; each step without one moves on by one.
+    let mut steps = 0;
+    while ids.len() >= 3 && steps < 2 * ids.len() + 2 {
+        let n = ids.len();
+        let (before, after) = (ids[(i + n - 1) % n], ids[(i + 1) % n]);
+        if before == after {
+            // Remove the tip (at i) and the return (at i + 1), the later index first.
+            let (tip, back) = (i, (i + 1) % n);
+            ids.remove(tip.max(back));
+            ids.remove(tip.min(back));
+            i = i.saturating_sub(1) % ids.len().max(1);
+            steps = 0;
+        } else {
+            i = (i + 1) % n;
+            steps += 1;
+        }
+    }
+    ids
 }
 
 /// One piece to triangulate: a region, or half of a whole-ellipsoid region.
@@ -1491,6 +1519,23 @@ mod tests {
     fn loops_lose_consecutive_repeats() {
         assert_eq!(without_repeats(vec![1, 1, 2, 3, 3, 1]), vec![1, 2, 3]);
         assert_eq!(without_repeats(vec![4, 4]), vec![4]);
+    }
+
+    #[test]
+    fn loops_lose_their_spikes() {
+        // 1 → 2 → 1 runs out to 2 and back.
+        assert_eq!(without_spikes(vec![0, 1, 2, 1, 3]), vec![0, 1, 3]);
+        // Two spikes; one across the seam (0 → 1 → 0 from the end round to the start); one
+        // inside another.
+        assert_eq!(without_spikes(vec![2, 0, 1, 0, 3, 4, 3]), vec![2, 0, 3]);
+        assert_eq!(without_spikes(vec![1, 0, 2, 3, 0]), vec![2, 3, 0]);
+        assert_eq!(without_spikes(vec![5, 6, 7, 8, 7, 6, 9]), vec![5, 6, 9]);
+        // Three traversals of one edge leave one; a bare slit leaves a point.
+        assert_eq!(without_spikes(vec![0, 1, 0, 1, 2, 3]), vec![0, 1, 2, 3]);
+        assert_eq!(without_spikes(vec![0, 1]), vec![0, 1]);
+        assert!(without_spikes(vec![0, 1, 0, 1]).len() < 3);
+        // No spike: unchanged.
+        assert_eq!(without_spikes(vec![0, 1, 2, 3]), vec![0, 1, 2, 3]);
     }
 
     #[test]
