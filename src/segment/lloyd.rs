@@ -261,20 +261,14 @@ pub(super) fn split<M: ProxyMetric>(
         state = lloyd.halve(state, h.region, h.cut);
     }
     // Only the hosts' faces move: the regions around them, which the caller may have
-    // checked already, keep their faces (and so their proxies).
-    lloyd.frozen = segmentation
+    // checked already, keep their faces (and so their proxies). The cut itself is not a
+    // result: it can leave a host in pieces, which the rounds reconnect.
+    let movable: Vec<bool> = segmentation
         .labels
         .iter()
-        .map(|r| !seen.contains(r))
+        .map(|r| seen.contains(r))
         .collect();
-    // The cut itself is not a result: it can leave a host in pieces, which the rounds
-    // reconnect.
-    for _ in 0..SPLIT_ROUNDS {
-        state = lloyd.round(&state);
-        lloyd.iterations += 1;
-        lloyd.record(&state, lloyd.iterations);
-    }
-    Ok(lloyd.finish())
+    Ok(lloyd.settle(state, movable))
 }
 
 /// Removes regions from a segmentation: the faces of each region in `removed` go to the
@@ -331,13 +325,10 @@ pub(super) fn dissolve<M: ProxyMetric>(
         .iter()
         .map(|&r| renumber[r as usize])
         .collect();
-    // Every face's error against the regions around it, then the flooding from the kept
-    // regions' faces into the freed ones.
-    let provisional: Vec<u32> = labels
-        .iter()
-        .map(|&l| if l == NONE { kept as u32 } else { l })
-        .collect();
-    lloyd.evaluate(&provisional, &proxies);
+    // Every face's error against the regions around it (the freed faces' label, NONE, has
+    // no proxy), then the flooding from the kept regions' faces into the freed ones.
+    lloyd.evaluate(&labels, &proxies);
+    let renumbered = labels.clone();
     let mut heap = BinaryHeap::new();
     lloyd.grow(&mut heap, &mut labels, &proxies);
     if labels.contains(&NONE) {
@@ -347,36 +338,21 @@ pub(super) fn dissolve<M: ProxyMetric>(
         });
     }
     let previous = State {
-        labels: segmentation
-            .labels
-            .iter()
-            .map(|&r| {
-                if gone[r as usize] {
-                    NONE
-                } else {
-                    renumber[r as usize]
-                }
-            })
-            .collect(),
+        labels: renumbered,
         errors: kept_items(&segmentation.region_errors, &gone),
         proxies,
         settled: vec![true; kept],
         total: segmentation.total_error,
         meets: true,
     };
-    let mut state = lloyd.fit_state(labels, kept, Some(&previous));
+    let state = lloyd.fit_state(labels, kept, Some(&previous));
     lloyd.record(&state, 0);
-    lloyd.frozen = segmentation
+    let movable: Vec<bool> = segmentation
         .labels
         .iter()
-        .map(|&r| !gone[r as usize])
+        .map(|&r| gone[r as usize])
         .collect();
-    for _ in 0..SPLIT_ROUNDS {
-        state = lloyd.round(&state);
-        lloyd.iterations += 1;
-        lloyd.record(&state, lloyd.iterations);
-    }
-    Ok(lloyd.finish())
+    Ok(lloyd.settle(state, movable))
 }
 
 /// The items whose index is not `gone`, in order.
@@ -774,6 +750,19 @@ impl<M: ProxyMetric> Lloyd<'_, M> {
         self.evaluate(&state.labels, &state.proxies);
         let labels = self.flood(&state.labels, &state.proxies);
         self.fit_state(labels, state.proxies.len(), Some(state))
+    }
+
+    /// [`SPLIT_ROUNDS`] rounds from `state` in which only the faces marked `movable` may
+    /// change region (the others, and so their regions' proxies, stay), each recorded; the
+    /// best state seen is the result. How [`split`] and [`dissolve`] end.
+    fn settle(mut self, mut state: State<M::Proxy>, movable: Vec<bool>) -> Segmentation<M::Proxy> {
+        self.frozen = movable.into_iter().map(|m| !m).collect();
+        for _ in 0..SPLIT_ROUNDS {
+            state = self.round(&state);
+            self.iterations += 1;
+            self.record(&state, self.iterations);
+        }
+        self.finish()
     }
 
     /// The flooding: regions restart from their seeds (see [`CORE_SEEDS`]) and grow by one
