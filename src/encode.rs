@@ -277,9 +277,10 @@ pub const SMALL_REGION_SHARE: f64 = 0.25;
 pub struct Verification {
     /// Regions the segmentation was asked for (or chose, for a tolerance).
     pub requested_regions: usize,
-    /// Rounds of region splitting that were needed.
+    /// Rounds of mending that were needed (a region's boundaries stored more faithfully,
+    /// small regions dissolved, or regions split).
     pub rounds: usize,
-    /// What is still wrong with the decoded file, when splitting could not make it clean
+    /// What is still wrong with the decoded file, when mending could not make it clean
     /// (`None`: it decodes clean, or it was not checked).
     pub problem: Option<String>,
 }

@@ -617,9 +617,9 @@ fn subdivision_keeps_a_clean_coarse_mesh_clean() {
     let fine = subdivide(&rep, coarse, 2, usize::MAX).unwrap();
     assert_clean(&fine, "subdivided");
     assert_closed(&fine, "subdivided");
-    // At most sixteen triangles per coarse one (fewer where faces stay whole).
+    // Sixteen triangles per coarse one, fewer where faces stay whole (some, not many).
     assert!(
-        fine.mesh.face_count() <= 16 * f,
+        fine.mesh.face_count() > 15 * f && fine.mesh.face_count() <= 16 * f,
         "{} of {}",
         fine.mesh.face_count(),
         16 * f

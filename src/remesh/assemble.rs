@@ -37,7 +37,7 @@ use crate::mesh::Mesh;
 use crate::representation::{Representation, Side};
 use glam::DVec3;
 use std::cmp::Ordering;
-use std::collections::{BinaryHeap, HashMap};
+use std::collections::{BinaryHeap, HashMap, VecDeque};
 
 /// Fewest points on the equator of a whole-ellipsoid region.
 const MIN_EQUATOR_POINTS: usize = 8;
@@ -695,26 +695,33 @@ fn without_repeats(ids: Vec<u32>) -> Vec<u32> {
 /// region's triangulation twice; it comes from a non-manifold edge (a border to each of its
 /// faces) that a region touches from two sides, or two arcs between the same junctions
 /// simplified to the same segment.
-fn without_spikes(mut ids: Vec<u32>) -> Vec<u32> {
-    let mut i = 0;
-    // Each removal shortens the loop by two; each step without one moves on by one.
-    let mut steps = 0;
-    while ids.len() >= 3 && steps < 2 * ids.len() + 2 {
-        let n = ids.len();
-        let (before, after) = (ids[(i + n - 1) % n], ids[(i + 1) % n]);
-        if before == after {
-            // Remove the tip (at i) and the return (at i + 1), the later index first.
-            let (tip, back) = (i, (i + 1) % n);
-            ids.remove(tip.max(back));
-            ids.remove(tip.min(back));
-            i = i.saturating_sub(1) % ids.len().max(1);
-            steps = 0;
+fn without_spikes(ids: Vec<u32>) -> Vec<u32> {
+    // One pass in order: a point that returns to the one before the last kept drops the last
+    // (the tip) and is not kept itself (the return). Linear: each point is kept and dropped
+    // at most once.
+    let mut kept: VecDeque<u32> = VecDeque::with_capacity(ids.len());
+    for id in ids {
+        if kept.len() >= 2 && kept[kept.len() - 2] == id {
+            kept.pop_back();
         } else {
-            i = (i + 1) % n;
-            steps += 1;
+            kept.push_back(id);
         }
     }
-    ids
+    // Then across the seam, where the loop closes: a tip at the end (…, u, v | u, …) or at
+    // the start (…, u | v, u, …). Each removal leaves only the seam to look at again.
+    while kept.len() >= 3 {
+        let n = kept.len();
+        if kept[n - 2] == kept[0] {
+            kept.pop_back();
+            kept.pop_front();
+        } else if kept[n - 1] == kept[1] {
+            kept.pop_front();
+            kept.pop_front();
+        } else {
+            break;
+        }
+    }
+    kept.into()
 }
 
 /// One piece to triangulate: a region, or half of a whole-ellipsoid region.
@@ -1534,6 +1541,11 @@ mod tests {
         assert_eq!(without_spikes(vec![0, 1, 0, 1, 2, 3]), vec![0, 1, 2, 3]);
         assert_eq!(without_spikes(vec![0, 1]), vec![0, 1]);
         assert!(without_spikes(vec![0, 1, 0, 1]).len() < 3);
+        // A long way out and back, in one pass.
+        let mut long = vec![5000];
+        long.extend((0..1000).chain((0..999).rev()));
+        long.push(5001);
+        assert_eq!(without_spikes(long), vec![5000, 0, 5001]);
         // No spike: unchanged.
         assert_eq!(without_spikes(vec![0, 1, 2, 3]), vec![0, 1, 2, 3]);
     }

@@ -8,10 +8,12 @@
 //! - a segment is split when it is longer than the target spacing `h` (the edge length the
 //!   vertex budget gives the interiors, so boundary and interior densities match), or when
 //!   the curve strays from its chord by more than the tolerance;
-//! - the new point is the chord midpoint projected onto the curve {f₁ = 0, f₂ = 0} of the
-//!   two ellipsoids' implicit functions by Newton's method for underdetermined systems
-//!   (x ← x − Jᵀ(JJᵀ)⁻¹f), kept only if it converges close to the chord; fitted ellipsoids
-//!   need not meet there, and then the midpoint of the two radial projections is used;
+//! - the new point is the foot on the curve {f₁ = 0, f₂ = 0} of the two ellipsoids'
+//!   implicit functions (Newton's method for underdetermined systems,
+//!   x ← x − Jᵀ(JJᵀ)⁻¹f, from the chord midpoint; fitted ellipsoids need not meet there,
+//!   and then the midpoint of the two radial projections stands in) plus the mean of the
+//!   segment ends' offsets from the curve, kept only if it lies within half a chord of the
+//!   midpoint and in the middle three fifths along the chord; otherwise the midpoint;
 //! - an arc on the mesh border (one region) gets radial projections onto its one ellipsoid;
 //! - stored points (junctions included) are never moved.
 //!
@@ -128,8 +130,8 @@ fn turns_left(e: &Ellipsoid, a: DVec3, b: DVec3, c: DVec3) -> bool {
 
 /// Removes the chain points at which both regions see a convex corner.
 ///
-/// Boundary points need not lie on either ellipsoid, and each region's chart projects them
-/// radially from its own centre: at a nearly straight point the two charts can disagree on
+/// Boundary points need not lie on either ellipsoid, and each region's chart maps them to
+/// their closest points on its own: at a nearly straight point the two charts can disagree on
 /// which side the corner bends to. When both see it bending away from them, the thin
 /// triangle (previous, point, next) would be inside both regions and the glued mesh would
 /// not be manifold. Dropping the point (from the one chain both regions use) removes the
@@ -450,6 +452,17 @@ mod tests {
             assert!((0.2..=0.8).contains(&along), "{a} {b} {m}: {along}");
         }
         assert!(off_midpoint > 1000, "{off_midpoint}");
+        // Ends on the curve (no offsets): the new point is on the curve too, between them.
+        for k in 0..100 {
+            let t = k as f64 * 0.06;
+            let (a, b) = (circle_point(t), circle_point(t + 0.5));
+            let m = curve.point_between(a, b);
+            assert!(
+                e1.implicit(m).abs() < 1e-9 && e2.implicit(m).abs() < 1e-9,
+                "{a} {b} {m}"
+            );
+            assert!((m - circle_point(t + 0.25)).length() < 1e-6, "{m}");
+        }
     }
 
     #[test]

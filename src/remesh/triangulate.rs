@@ -902,11 +902,13 @@ fn arc_z_range(a: DVec3, b: DVec3) -> (f64, f64) {
     (low, high)
 }
 
-/// Most pieces (of at most a cell each) the boundary is cut into by [`SegmentGrid::new`].
+/// The boundary's length over this is the least cell size of [`SegmentGrid::new`]: the
+/// boundary is cut into at most this many pieces of a cell or less, plus one per segment.
 const MAX_GRID_PIECES: f64 = (1u64 << 14) as f64;
 
 /// Boundary segments (unit-sphere chords) bucketed in a uniform grid of cells as large as
-/// the clearance, to find the grid points closer than that to the boundary.
+/// the clearance (larger on a long boundary, see [`MAX_GRID_PIECES`]), to find the grid
+/// points closer than the clearance to the boundary.
 struct SegmentGrid<'a> {
     segments: &'a [[DVec3; 2]],
     clearance: f64,
