@@ -153,11 +153,16 @@ pub fn encode_mesh(
     // Decode what was written; mend the regions the decoder could not mesh cleanly and
     // write again, until it decodes clean or the rounds are spent. Kept: the first clean
     // encoding, else the best: one that decodes (with faults) over one that does not, then
-    // the fewest regions to blame, then the earliest.
+    // a sound mesh (closed where the source is, manifold, consistently oriented) over one
+    // that is not, then the fewest flipped and degenerate triangles, then the fewest
+    // regions to blame, then the earliest.
     let max_added = MAX_SPLIT_REGIONS.max(requested);
-    let mut best: Option<((u8, usize), Encoded)> = None;
+    let mut best: Option<((u8, Faults, usize), Encoded)> = None;
     // How faithfully each region's boundaries are stored, for the present segmentation.
     let mut fidelity = vec![Fidelity::Smoothed; segmentation.region_count()];
+    // The segmentations checked so far: mending must not go round in circles (dissolving
+    // the small region a split made gives back the segmentation before the split).
+    let mut checked: Vec<Vec<u32>> = vec![segmentation.labels.clone()];
     loop {
         let (stored, boundary_points) = match represent(mesh, &segmentation, settings, &fidelity) {
             Ok(r) => r,
@@ -166,10 +171,10 @@ pub fn encode_mesh(
             Err(EncodeMeshError::Representation(_)) if best.is_some() => break,
             Err(e) => return Err(e),
         };
-        let (rank, blamed, problem) = match verify(&stored.bytes)? {
-            Verdict::Clean => (0, Vec::new(), None),
-            Verdict::Dirty(regions, problem) => (1, regions, Some(problem)),
-            Verdict::Fails(regions, problem) => (2, regions, Some(problem)),
+        let (rank, faults, blamed, problem) = match verify(&stored.bytes)? {
+            Verdict::Clean => (0, Faults::default(), Vec::new(), None),
+            Verdict::Dirty(faults, regions, problem) => (1, faults, regions, Some(problem)),
+            Verdict::Fails(regions, problem) => (2, Faults::default(), regions, Some(problem)),
         };
         verification.problem = problem;
         let done = verification.problem.is_none();
@@ -179,7 +184,7 @@ pub fn encode_mesh(
             boundary_points,
             verification.clone(),
         );
-        let score = (rank, blamed.len());
+        let score = (rank, faults, blamed.len());
         if best.as_ref().is_none_or(|(s, _)| score < *s) {
             best = Some((score, candidate));
         }
@@ -229,9 +234,12 @@ pub fn encode_mesh(
                 progress,
             )
             .ok()
+            .filter(|s| !checked.contains(&s.labels))
         };
         segmentation = match dissolved {
             Some(s) => s,
+            // Nothing to dissolve, or dissolving gives a segmentation already checked: split
+            // every blamed region, small ones included.
             None => {
                 let room = (requested + max_added).saturating_sub(segmentation.region_count());
                 let hosts: Vec<Split> = blamed
@@ -252,6 +260,10 @@ pub fn encode_mesh(
                 )?
             }
         };
+        if checked.contains(&segmentation.labels) {
+            break;
+        }
+        checked.push(segmentation.labels.clone());
         fidelity = vec![Fidelity::Smoothed; segmentation.region_count()];
     }
     // The loop keeps an encoding before it can break.
@@ -290,8 +302,17 @@ pub struct Verification {
 /// is known, and what went wrong.
 enum Verdict {
     Clean,
-    Dirty(Vec<Split>, String),
+    Dirty(Faults, Vec<Split>, String),
     Fails(Vec<Split>, String),
+}
+
+/// How bad a mesh that decodes with faults is, worst first in the order of comparison:
+/// unsound (not closed where its source is, not manifold, or not consistently oriented),
+/// then its flipped and degenerate triangles.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Default)]
+struct Faults {
+    unsound: bool,
+    bad_triangles: usize,
 }
 
 /// Decodes `bytes` as any reader would ([`format::Limits::default`],
@@ -326,7 +347,13 @@ fn verify(bytes: &[u8]) -> Result<Verdict, EncodeMeshError> {
                 .into_iter()
                 .map(|region| Split { region, cut: None })
                 .collect();
-            Ok(Verdict::Dirty(blamed, problem))
+            let faults = Faults {
+                unsound: !(c.manifold
+                    && c.consistently_oriented
+                    && (c.closed || c.has_border_arcs)),
+                bad_triangles: c.flipped + c.degenerate,
+            };
+            Ok(Verdict::Dirty(faults, blamed, problem))
         }
         // The decoder reports the region its last attempt stopped at, which is often not
         // where its first (and best) attempt failed. Blamed instead: the first region that
