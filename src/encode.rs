@@ -44,9 +44,10 @@ pub struct EncodeSettings {
     /// its loops touch) first has its boundaries stored at the mesh's own points rather than
     /// smoothed, then every one of those points kept; a region of at most
     /// [`SMALL_REGION_SHARE`] of the mean region's faces is dissolved into its neighbours;
-    /// any other is split (at most [`MAX_SPLIT_REGIONS`] more regions). The file may then
-    /// hold more or fewer regions than asked for ([`Encoded::verification`] says how many
-    /// rounds it took and what, if anything, is still wrong).
+    /// any other is split (at most [`MAX_SPLIT_REGIONS`] more regions); each segmentation is
+    /// checked once. Failing that, the best file seen is kept (see [`encode_mesh`]). The
+    /// file may then hold more or fewer regions than asked for ([`Encoded::verification`]
+    /// says how many rounds it took and what, if anything, is still wrong).
     pub verify: bool,
 }
 
