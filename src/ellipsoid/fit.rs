@@ -9,7 +9,7 @@
 //!   and the weights converted so that the objective is unchanged. Every tolerance and cap
 //!   below is in these units.
 //! - **Parametrisation.** Centre c, radii r = exp(ℓ) (log-parametrised, so always positive),
-//!   rotation R updated multiplicatively by small axis-angle steps R ← R·exp([ω]×); centre
+//!   rotation R updated multiplicatively by small axis-angle steps R ← R·exp(\[ω\]×); centre
 //!   steps are taken in the ellipsoid's own frame (c ← c + R·δc).
 //! - **Residuals.** Per sample with weight w: √(wα)·d (signed radial distance),
 //!   √(wβ)·(ν − s·m) (normal in the ellipsoid's frame, 3 components), √(wγ)·(H − s·H_P);
