@@ -980,3 +980,69 @@ fn ellip_decode_can_turn_subdivision_off() {
     }
     assert_ne!(written[0], written[1]);
 }
+
+/// A band whose outer loop quantisation collapsed (a tiny cap's boundary, three points at
+/// one position) is still meshed, bounded by its other loop, so the mesh stays closed: on a
+/// closed surface which loop is outer is the encoder's choice. The decoder used to drop the
+/// whole region and leave a hole where the cap across its other loop met it (horse at
+/// K = 32 in some mending rounds). The point-in-region query agrees.
+#[test]
+fn a_region_whose_outer_loop_collapsed_keeps_its_other_loops() {
+    use ellip::ellipsoid::Ellipsoid;
+    use ellip::representation::{Arc, ArcRef, Cycle, Metadata, Side};
+    let sphere = Ellipsoid::sphere(DVec3::ZERO, 1.0);
+    let (north, band, south) = (0u32, 1u32, 2u32);
+    // Latitude 0.5, counter-clockwise seen from above: the north cap on its left.
+    let lat = 0.5f64;
+    let mut points: Vec<DVec3> = (0..16)
+        .map(|i| {
+            let lon = std::f64::consts::TAU * i as f64 / 16.0;
+            DVec3::new(lat.cos() * lon.cos(), lat.cos() * lon.sin(), lat.sin())
+        })
+        .collect();
+    // The south cap's loop, collapsed to one position.
+    points.extend([DVec3::NEG_Z; 3]);
+    let cycle = |arc: u32, reversed: bool, outer: bool| Cycle {
+        arcs: vec![ArcRef { arc, reversed }],
+        outer,
+    };
+    let rep = Representation {
+        ellipsoids: vec![sphere; 3],
+        points,
+        arcs: vec![
+            Arc {
+                points: (0..16).collect(),
+                closed: true,
+                left: north,
+                right: Side::Region(band),
+            },
+            Arc {
+                points: vec![16, 17, 18],
+                closed: true,
+                left: south,
+                right: Side::Region(band),
+            },
+        ],
+        cycles: vec![
+            vec![cycle(0, false, true)],
+            // The collapsed loop is the band's outer one, the other its hole.
+            vec![cycle(1, true, true), cycle(0, true, false)],
+            vec![cycle(1, false, true)],
+        ],
+        metadata: Metadata {
+            source_vertices: 600,
+            source_faces: 1196,
+            ..Metadata::default()
+        },
+    };
+    rep.validate().unwrap();
+    let out = remesh(&rep, &RemeshOptions::default()).unwrap();
+    assert_clean(&out, "collapsed outer loop");
+    assert_closed(&out, "collapsed outer loop");
+    let band_faces = out.face_regions.iter().filter(|&&r| r == band).count();
+    assert!(band_faces > out.mesh.face_count() / 2, "{band_faces}");
+    assert!(!out.face_regions.contains(&south));
+    let chart = ellip::remesh::query::chart_region(&rep, band).unwrap();
+    assert!(chart.contains(DVec3::X) && chart.contains(DVec3::new(0.0, 0.6, -0.8)));
+    assert!(!chart.contains(DVec3::Z));
+}

@@ -381,18 +381,17 @@ impl Plan<'_> {
                     lp.extend(ids.into_iter().skip(usize::from(!closed)));
                 }
                 let lp = without_spikes(without_repeats(lp));
-                // Two arcs that are the same segment between two junctions enclose nothing:
-                // the loop is dropped, and the regions on its other sides, which see the
-                // same segment the other way, are glued directly. Without its outer loop
-                // the region is empty.
-                if lp.len() < 3 {
-                    if cycle.outer {
-                        loops.clear();
-                        break;
-                    }
-                    continue;
+                // A loop that encloses nothing (two arcs that are the same segment between
+                // two junctions, or a tiny region's boundary whose points quantisation
+                // merged) is dropped, and the regions on its other sides, which see the same
+                // points the other way, are glued directly. The region keeps its other
+                // loops, even when the dropped one is its outer one: on a closed surface
+                // which loop is outer is a choice (the encoder takes the one around the
+                // most area), and without them the regions across them would face a hole.
+                // With no loop left the region is empty.
+                if lp.len() >= 3 {
+                    loops.push(lp);
                 }
-                loops.push(lp);
             }
             if loops.is_empty() {
                 continue;

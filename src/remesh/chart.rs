@@ -164,7 +164,7 @@ impl RegionChart {
         }
     }
 
-    /// The chart of a region that encloses nothing (e.g. its outer loop collapsed to a point:
+    /// The chart of a region that encloses nothing (e.g. its loops collapsed to points:
     /// [`is_degenerate_loop`]): it contains no point.
     pub fn empty(ellipsoid: &Ellipsoid) -> RegionChart {
         RegionChart {
@@ -297,8 +297,8 @@ impl RegionChart {
 
 /// Whether a boundary loop of finite points encloses nothing on `ellipsoid`: fewer than three
 /// distinct directions from its centre (e.g. quantisation collapsed a tiny region's boundary
-/// to a point). [`RegionChart::new`] refuses such loops; a caller may drop a degenerate hole,
-/// or treat a region whose outer loop is degenerate as empty ([`RegionChart::empty`]), as
+/// to a point). [`RegionChart::new`] refuses such loops; a caller may drop them, and treat a
+/// region whose loops are all degenerate as empty ([`RegionChart::empty`]), as
 /// [`super::query::chart_region`] does. Loops with a non-finite point are not degenerate
 /// (they are errors).
 pub fn is_degenerate_loop(ellipsoid: &Ellipsoid, points: &[DVec3]) -> bool {

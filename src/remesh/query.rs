@@ -70,8 +70,10 @@ pub fn region_loop_points(rep: &Representation, region: u32) -> Vec<Vec<DVec3>> 
 ///
 /// Loops that enclose nothing ([`is_degenerate_loop`]: fewer than three distinct directions,
 /// which real encodings produce when quantisation collapses a region of a few faces to a
-/// point) are handled here rather than refused: a degenerate hole is dropped, and a region
-/// whose outer loop is degenerate is empty ([`RegionChart::empty`]).
+/// point) are handled here rather than refused: they are dropped, the region bounded by its
+/// other loops, as the remesher does (even when the dropped loop is the outer one: on a
+/// closed surface which loop is outer is a choice); a region whose loops are all degenerate
+/// is empty ([`RegionChart::empty`]).
 ///
 /// Errors: the region does not exist, or its boundary is unusable.
 pub fn chart_region(rep: &Representation, region: u32) -> Result<RegionChart, RemeshError> {
@@ -84,15 +86,13 @@ pub fn chart_region(rep: &Representation, region: u32) -> Result<RegionChart, Re
         })?;
     let cycles = rep.cycles.get(region as usize).map_or(&[][..], |c| c);
     let mut loops = Vec::new();
-    for (points, cycle) in region_loop_points(rep, region).into_iter().zip(cycles) {
+    for points in region_loop_points(rep, region) {
         if !is_degenerate_loop(ellipsoid, &points) {
             loops.push(points);
-        } else if cycle.outer {
-            return Ok(RegionChart::empty(ellipsoid));
         }
     }
     if loops.is_empty() && !cycles.is_empty() {
-        // Every loop was a degenerate hole yet there is no outer one: nothing is enclosed.
+        // Every loop was degenerate: nothing is enclosed.
         return Ok(RegionChart::empty(ellipsoid));
     }
     RegionChart::new(region, ellipsoid, &loops)
