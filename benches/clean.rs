@@ -106,25 +106,7 @@ fn main() {
                     clean += 1;
                     "clean".to_string()
                 }
-                Ok(out) => {
-                    let c = out.check;
-                    format!(
-                        "{} flipped, {} degenerate{}{}{}",
-                        c.flipped,
-                        c.degenerate,
-                        if c.manifold { "" } else { ", not manifold" },
-                        if c.consistently_oriented {
-                            ""
-                        } else {
-                            ", not consistently oriented"
-                        },
-                        if c.closed || c.has_border_arcs {
-                            ""
-                        } else {
-                            ", not closed"
-                        },
-                    )
-                }
+                Ok(out) => out.check.faults(),
                 Err(e) => format!("does not decode: {e}"),
             };
             println!(

@@ -346,30 +346,13 @@ fn verify(bytes: &[u8]) -> Result<Verdict, EncodeMeshError> {
         Ok(out) if out.check.is_clean() => Ok(Verdict::Clean),
         Ok(out) => {
             let c = out.check;
-            let problem = format!(
-                "decodes with {} flipped and {} degenerate triangles{}{}{}",
-                c.flipped,
-                c.degenerate,
-                if c.manifold { "" } else { ", not manifold" },
-                if c.consistently_oriented {
-                    ""
-                } else {
-                    ", not consistently oriented"
-                },
-                if c.closed || c.has_border_arcs {
-                    ""
-                } else {
-                    ", not closed"
-                },
-            );
+            let problem = format!("decodes with {}", c.faults());
             let blamed = problem_regions(&representation, &out)
                 .into_iter()
                 .map(|region| Split { region, cut: None })
                 .collect();
             let faults = Faults {
-                unsound: !(c.manifold
-                    && c.consistently_oriented
-                    && (c.closed || c.has_border_arcs)),
+                unsound: !c.is_sound(),
                 bad_triangles: c.flipped + c.degenerate,
             };
             Ok(Verdict::Dirty(faults, blamed, problem))

@@ -212,17 +212,7 @@ pub fn remesh_and_write(
     }
     let check = remeshed.check;
     if !quiet && !check.is_clean() {
-        eprintln!(
-            "warning: the mesh is not clean: {} degenerate and {} flipped triangles, {}, {}",
-            check.degenerate,
-            check.flipped,
-            if check.closed { "closed" } else { "open" },
-            if check.manifold {
-                "manifold"
-            } else {
-                "not manifold"
-            }
-        );
+        eprintln!("warning: the mesh is not clean: {}", check.faults());
     }
     Ok(DecodeReport {
         file: shown(input),

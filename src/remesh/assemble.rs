@@ -72,11 +72,35 @@ impl MeshCheck {
     /// manifold and consistently oriented, and closed unless the representation has border
     /// arcs.
     pub fn is_clean(&self) -> bool {
-        self.degenerate == 0
-            && self.flipped == 0
-            && self.manifold
-            && self.consistently_oriented
-            && (self.closed || self.has_border_arcs)
+        self.degenerate == 0 && self.flipped == 0 && self.is_sound()
+    }
+
+    /// Whether the mesh's topology is as it should be, whatever its triangles' shapes:
+    /// manifold, consistently oriented, and closed unless the representation has border arcs.
+    pub fn is_sound(&self) -> bool {
+        self.manifold && self.consistently_oriented && (self.closed || self.has_border_arcs)
+    }
+
+    /// What keeps the mesh from being clean, in words: "2 flipped and 0 degenerate
+    /// triangles", then each of ", not manifold", ", not consistently oriented" and ", not
+    /// closed" that applies.
+    pub fn faults(&self) -> String {
+        format!(
+            "{} flipped and {} degenerate triangles{}{}{}",
+            self.flipped,
+            self.degenerate,
+            if self.manifold { "" } else { ", not manifold" },
+            if self.consistently_oriented {
+                ""
+            } else {
+                ", not consistently oriented"
+            },
+            if self.closed || self.has_border_arcs {
+                ""
+            } else {
+                ", not closed"
+            },
+        )
     }
 }
 
@@ -261,10 +285,7 @@ fn assemble_unsubdivided(
                 if c.is_clean() {
                     return Ok(out);
                 }
-                let score = (
-                    !(c.manifold && c.consistently_oriented && (c.closed || c.has_border_arcs)),
-                    c.degenerate + c.flipped,
-                );
+                let score = (!c.is_sound(), c.degenerate + c.flipped);
                 if best.as_ref().is_none_or(|(s, _)| score < *s) {
                     best = Some((score, out));
                 }
@@ -1467,7 +1488,7 @@ pub fn problem_regions(rep: &Representation, out: &Remeshed) -> Vec<u32> {
         .map(|(r, _)| r)
         .collect();
     let c = out.check;
-    if !(c.manifold && c.consistently_oriented && (c.closed || c.has_border_arcs)) {
+    if !c.is_sound() {
         let t = mesh.topology();
         let faces = mesh.faces();
         for (f, (tri, &r)) in faces.iter().zip(&out.face_regions).enumerate() {
@@ -1525,6 +1546,45 @@ mod tests {
     fn loops_lose_consecutive_repeats() {
         assert_eq!(without_repeats(vec![1, 1, 2, 3, 3, 1]), vec![1, 2, 3]);
         assert_eq!(without_repeats(vec![4, 4]), vec![4]);
+    }
+
+    #[test]
+    fn a_check_says_what_keeps_a_mesh_from_being_clean() {
+        let clean = MeshCheck {
+            degenerate: 0,
+            flipped: 0,
+            closed: true,
+            manifold: true,
+            consistently_oriented: true,
+            border_loops: 0,
+            has_border_arcs: false,
+        };
+        assert!(clean.is_clean() && clean.is_sound());
+        // Open where the representation has border arcs: still sound.
+        let open = MeshCheck {
+            closed: false,
+            border_loops: 1,
+            has_border_arcs: true,
+            ..clean
+        };
+        assert!(open.is_clean());
+        let flipped = MeshCheck {
+            flipped: 2,
+            ..clean
+        };
+        assert!(flipped.is_sound() && !flipped.is_clean());
+        assert_eq!(flipped.faults(), "2 flipped and 0 degenerate triangles");
+        let holed = MeshCheck {
+            closed: false,
+            border_loops: 1,
+            consistently_oriented: false,
+            ..clean
+        };
+        assert!(!holed.is_sound());
+        assert_eq!(
+            holed.faults(),
+            "0 flipped and 0 degenerate triangles, not consistently oriented, not closed"
+        );
     }
 
     #[test]
