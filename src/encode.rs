@@ -140,6 +140,7 @@ pub fn encode_mesh(
     let mut verification = Verification {
         requested_regions: requested,
         rounds: 0,
+        tried: 0,
         problem: None,
     };
     if !settings.verify {
@@ -271,8 +272,11 @@ pub fn encode_mesh(
         fidelity = vec![Fidelity::Smoothed; segmentation.region_count()];
     }
     // The loop keeps an encoding before it can break.
-    best.map(|(_, encoded)| encoded)
-        .ok_or_else(|| EncodeMeshError::Unreachable("internal error: no encoding was kept".into()))
+    best.map(|(_, mut encoded)| {
+        encoded.verification.tried = verification.rounds;
+        encoded
+    })
+    .ok_or_else(|| EncodeMeshError::Unreachable("internal error: no encoding was kept".into()))
 }
 
 /// Most rounds of mending (boundaries stored more faithfully, regions dissolved or split)
@@ -294,8 +298,11 @@ pub struct Verification {
     /// Regions the segmentation was asked for (or chose, for a tolerance).
     pub requested_regions: usize,
     /// Rounds of mending that were needed (a region's boundaries stored more faithfully,
-    /// small regions dissolved, or regions split).
+    /// small regions dissolved, or regions split): the round the kept file comes from.
     pub rounds: usize,
+    /// Rounds of mending tried in all: more than `rounds` when no round made the file
+    /// clean and an earlier one was kept.
+    pub tried: usize,
     /// What is still wrong with the decoded file, when mending could not make it clean
     /// (`None`: it decodes clean, or it was not checked).
     pub problem: Option<String>,
@@ -702,7 +709,9 @@ pub fn encode_to_target(
         }
         _ => {}
     }
-    let max_k = MAX_RATE_REGIONS.min(mesh.face_count().max(1));
+    // Every connected component needs a region of its own.
+    let min_k = mesh.topology().component_count().max(1);
+    let max_k = MAX_RATE_REGIONS.max(min_k).min(mesh.face_count().max(1));
     let mut tried: Vec<(Probe, RateControlled)> = Vec::new();
     let mut probe = |k: usize, tolerance: f64, tried: &mut Vec<(Probe, RateControlled)>| {
         if let Some((p, _)) = tried
@@ -752,7 +761,7 @@ pub fn encode_to_target(
     let tolerance = settings.simplify_tolerance;
     let mut below = 0usize; // the largest K known to be on the near side (0: none)
     let mut above = None; // the smallest K known to be beyond
-    let mut k = 4.min(max_k);
+    let mut k = 4.max(min_k).min(max_k);
     loop {
         let p = probe(k, tolerance, &mut tried)?;
         if beyond(&p) {
@@ -766,9 +775,9 @@ pub fn encode_to_target(
         k = (2 * k).min(max_k);
     }
     if let Some(mut hi) = above {
-        let mut lo = below + 1;
+        let mut lo = (below + 1).max(min_k);
         if below == 0 {
-            lo = 1;
+            lo = min_k;
         }
         while lo < hi {
             let mid = (lo + hi) / 2;
@@ -782,10 +791,10 @@ pub fn encode_to_target(
             for factor in [2.0, 4.0] {
                 probe(hi, tolerance * factor, &mut tried)?;
             }
-        } else if hi == 1 {
-            // Even one region does not fit: try coarser boundaries.
+        } else if hi == min_k {
+            // Even the fewest regions do not fit: try coarser boundaries.
             for factor in [4.0, 16.0] {
-                probe(1, tolerance * factor, &mut tried)?;
+                probe(min_k, tolerance * factor, &mut tried)?;
             }
         }
     }

@@ -241,3 +241,73 @@ fn encode_writes_an_ellip_file_that_info_reads() {
     assert_clean_failure(&ellip(&["info", bad.to_str().unwrap()]), "damaged .ellip");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `count` unit icospheres (80 faces each) in a row, as OBJ text: a mesh of `count`
+/// separate components.
+fn separate_spheres_obj(count: usize) -> String {
+    let sphere = ellip::synth::shapes::icosphere(1.0, 1);
+    let n = sphere.vertex_count();
+    let mut obj = String::new();
+    for c in 0..count {
+        for p in sphere.positions() {
+            obj += &format!("v {} {} {}\n", p.x + 3.0 * c as f64, p.y, p.z);
+        }
+    }
+    for c in 0..count {
+        for f in sphere.faces() {
+            let [a, b, d] = f.map(|i| i as usize + c * n + 1);
+            obj += &format!("f {a} {b} {d}\n");
+        }
+    }
+    obj
+}
+
+#[test]
+fn a_mesh_of_more_pieces_than_the_default_regions_encodes_with_one_more_region_each() {
+    let dir = temp_dir("pieces");
+    let input = dir.join("spheres.obj");
+    std::fs::write(&input, separate_spheres_obj(14)).unwrap();
+    let input = input.to_string_lossy().into_owned();
+    let output = dir.join("spheres.ellip").to_string_lossy().into_owned();
+    // Without -k: 12 regions and one for each of the 13 further pieces, said on stderr.
+    let out = ellip(&["encode", &input, "-o", &output, "--json"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("14 separate components: 25 regions"),
+        "{stderr}"
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("valid JSON");
+    assert_eq!(v["requested_regions"], 25);
+    assert_eq!(v["decode_check"], "clean");
+    // Quiet: no note.
+    std::fs::remove_file(&output).unwrap();
+    let out = ellip(&["encode", &input, "-o", &output, "--quiet"]);
+    assert!(out.status.success());
+    assert!(
+        out.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // An explicit -k below the piece count is refused, in one line.
+    std::fs::remove_file(&output).unwrap();
+    let out = ellip(&["encode", &input, "-o", &output, "-k", "12"]);
+    assert_clean_failure(&out, "-k 12 for 14 pieces");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("14 separate components"));
+    // Rate control searches from one region per piece.
+    let out = ellip(&[
+        "encode",
+        &input,
+        "-o",
+        &output,
+        "--max-bytes",
+        "100000",
+        "--json",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("valid JSON");
+    assert!(v["regions"].as_u64().unwrap() >= 14, "{v}");
+    assert!(v["bytes"].as_u64().unwrap() <= 100_000, "{v}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -144,7 +144,9 @@ fn convert_through_ellip(args: &ConvertArgs, segment: SegmentOptions) -> Result<
         }
     }
     let settings = EncodeSettings {
-        segment,
+        segment: args
+            .segmentation
+            .for_mesh(segment, &imported.mesh, args.quiet),
         ..EncodeSettings::default()
     };
     let bar = progress_bar(args.quiet, &settings.segment);

@@ -72,6 +72,9 @@ struct EncodeReport {
     /// Rounds of mending the decoder check needed (the name is kept from when every round
     /// split regions).
     split_rounds: usize,
+    /// Rounds of mending tried in all (more than split_rounds when none made the file
+    /// clean and an earlier one was kept).
+    mending_rounds_tried: usize,
     /// "clean", "not checked" (--no-verify), or what is still wrong with the decoded file.
     decode_check: String,
     arcs: usize,
@@ -119,7 +122,7 @@ pub fn run(args: &EncodeArgs) -> Result<(), CliError> {
     if !(args.simplify.is_finite() && args.simplify >= 0.0) {
         return Err(format!("--simplify must be a fraction >= 0, not {}", args.simplify).into());
     }
-    let settings = EncodeSettings {
+    let mut settings = EncodeSettings {
         segment: args.segmentation.options(false)?,
         simplify_tolerance: args.simplify,
         bits: args.bits,
@@ -133,6 +136,12 @@ pub fn run(args: &EncodeArgs) -> Result<(), CliError> {
         }
     }
     let mesh = &imported.mesh;
+    // --max-bytes searches the region count itself.
+    if args.max_bytes.is_none() {
+        settings.segment = args
+            .segmentation
+            .for_mesh(settings.segment, mesh, args.quiet);
+    }
     // Rate control: --tolerance (the decoded RMS error) or --max-bytes search -k.
     let target = match (settings.segment.regions, args.max_bytes) {
         (RegionCount::Tolerance(_), Some(_)) => {
@@ -197,6 +206,7 @@ pub fn run(args: &EncodeArgs) -> Result<(), CliError> {
         regions: summary.regions,
         requested_regions: encoded.verification.requested_regions,
         split_rounds: encoded.verification.rounds,
+        mending_rounds_tried: encoded.verification.tried,
         decode_check: match (&encoded.verification.problem, args.no_verify) {
             (_, true) => "not checked".into(),
             (None, false) => "clean".into(),
@@ -235,10 +245,16 @@ pub fn run(args: &EncodeArgs) -> Result<(), CliError> {
         print_report(&report);
     }
     if let (Some(problem), false) = (&encoded.verification.problem, args.quiet) {
+        let v = &encoded.verification;
+        let kept = if v.rounds == v.tried {
+            String::new()
+        } else {
+            format!(" (the file kept is round {}'s)", v.rounds)
+        };
         eprintln!(
             "warning: {}: the file {problem} at its default density, even after {} rounds of \
-             mending regions",
-            report.output, encoded.verification.rounds
+             mending regions{kept}",
+            report.output, v.tried
         );
     }
     Ok(())

@@ -84,10 +84,7 @@ pub fn run(args: &PreviewArgs) -> Result<(), CliError> {
             (image, None)
         }
         None => {
-            let settings = EncodeSettings {
-                segment: args.segmentation.options(false)?,
-                ..EncodeSettings::default()
-            };
+            let segment = args.segmentation.options(false)?;
             let imported = read_mesh(&args.input, &args.read.import_options()?)?;
             if !args.quiet {
                 for w in &imported.warnings {
@@ -95,6 +92,10 @@ pub fn run(args: &PreviewArgs) -> Result<(), CliError> {
                 }
             }
             let mesh = &imported.mesh;
+            let settings = EncodeSettings {
+                segment: args.segmentation.for_mesh(segment, mesh, args.quiet),
+                ..EncodeSettings::default()
+            };
             let bar = progress_bar(args.quiet, &settings.segment);
             let start = Instant::now();
             let encoded = encode_mesh(mesh, &settings, &mut |p| show_progress(&bar, &p))?;

@@ -13,8 +13,8 @@ use ellip::export::{write_mesh, MeshData};
 use ellip::import::{read_mesh, MeshFormat};
 use ellip::preview::palette::{palette, Color};
 use ellip::segment::{
-    segment_with, EllipsoidMetric, Mode, Plane, PlaneMetric, Progress, RegionCount, SegmentOptions,
-    Segmentation, WeightOverrides,
+    default_region_count, segment_with, EllipsoidMetric, Mode, Plane, PlaneMetric, Progress,
+    RegionCount, SegmentOptions, Segmentation, WeightOverrides, DEFAULT_REGIONS,
 };
 use ellip::Mesh;
 use glam::DVec3;
@@ -55,7 +55,8 @@ pub struct SegmentArgs {
 /// The segmentation's options, shared by `ellip segment` and `ellip encode`.
 #[derive(Debug, Args)]
 pub struct SegmentationArgs {
-    /// Number of regions [default: 12].
+    /// Number of regions [default: 12, and one more for each further connected component of
+    /// the mesh, which needs a region of its own].
     #[arg(
         long = "regions",
         short = 'k',
@@ -177,6 +178,7 @@ pub fn run(args: &SegmentArgs) -> Result<(), CliError> {
         }
     }
     let mesh = &imported.mesh;
+    let options = args.segmentation.for_mesh(options, mesh, args.quiet);
     let diagonal = mesh.bounding_box().map_or(0.0, |b| b.diagonal());
 
     let bar = progress_bar(args.quiet, &options);
@@ -268,13 +270,34 @@ pub fn run(args: &SegmentArgs) -> Result<(), CliError> {
 }
 
 impl SegmentationArgs {
-    /// The library's options from the command line, each value checked (one-line errors, before
-    /// the mesh is read). `planes` says whether the plane metric will be used.
     /// Whether -k/--regions was given.
     pub fn has_regions(&self) -> bool {
         self.regions.is_some()
     }
 
+    /// `options` for `mesh`: when neither -k nor --tolerance was given, the default region
+    /// count for it ([`ellip::segment::default_region_count`]: one more region for each
+    /// further connected component), said on stderr unless `quiet` when it is not the
+    /// usual one.
+    pub fn for_mesh(&self, options: SegmentOptions, mesh: &Mesh, quiet: bool) -> SegmentOptions {
+        if self.regions.is_some() || self.tolerance.is_some() {
+            return options;
+        }
+        let k = default_region_count(mesh);
+        if k != DEFAULT_REGIONS && !quiet {
+            eprintln!(
+                "note: the mesh has {} separate components: {k} regions ({DEFAULT_REGIONS}, and one for each further component); -k chooses",
+                mesh.topology().component_count()
+            );
+        }
+        SegmentOptions {
+            regions: RegionCount::Fixed(k),
+            ..options
+        }
+    }
+
+    /// The library's options from the command line, each value checked (one-line errors, before
+    /// the mesh is read). `planes` says whether the plane metric will be used.
     pub fn options(&self, planes: bool) -> Result<SegmentOptions, CliError> {
         let args = self;
         let regions = match (args.regions, args.tolerance) {

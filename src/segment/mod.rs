@@ -81,10 +81,21 @@ pub struct SegmentOptions {
     pub max_regions: usize,
 }
 
+/// Regions of [`SegmentOptions::default`].
+pub const DEFAULT_REGIONS: usize = 12;
+
+/// The region count to use when none is asked for: [`DEFAULT_REGIONS`] for a mesh in one
+/// piece, and one more for each further connected component, which needs a region of its
+/// own (scans come with loose fragments: Stanford's dragon has hundreds). A fixed count
+/// below the component count is refused ([`SegmentError::TooFewRegions`]).
+pub fn default_region_count(mesh: &Mesh) -> usize {
+    DEFAULT_REGIONS + mesh.topology().component_count().saturating_sub(1)
+}
+
 impl Default for SegmentOptions {
     fn default() -> Self {
         SegmentOptions {
-            regions: RegionCount::Fixed(12),
+            regions: RegionCount::Fixed(DEFAULT_REGIONS),
             max_iterations: 50,
             weights: WeightOverrides::default(),
             mode: Mode::Surface,
