@@ -12,13 +12,16 @@
 //!
 //! By default: the 12 meshes of `../shared/meshes` under 25 000 faces at K = 8, 12, 18, 24
 //! and 32 (K = 8 to 24 with `--no-verify`); with `--large`, the 4 larger ones at K = 12 and
-//! 18. Without `../shared`, the blob fixtures at K = 4 and 8.
+//! 18. Without `../shared`, the blob fixtures at K = 4 and 8. With `--dir DIR`: every mesh
+//! file in DIR (meshes the project has not seen), at the default K and at 18, each plus one
+//! region for each further connected component
+//! ([`ellip::segment::default_region_count`]).
 
 use ellip::encode::{encode_mesh, EncodeSettings};
 use ellip::format::{decode, Limits};
-use ellip::import::{read_mesh, ImportOptions};
+use ellip::import::{read_mesh, ImportOptions, MeshFormat};
 use ellip::remesh::{remesh, RemeshOptions};
-use ellip::segment::{RegionCount, SegmentOptions};
+use ellip::segment::{default_region_count, RegionCount, SegmentOptions, DEFAULT_REGIONS};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -45,7 +48,20 @@ fn main() {
     let verify = !args.iter().any(|a| a == "--no-verify");
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let shared = root.join("../shared/meshes");
-    let (paths, ks): (Vec<PathBuf>, Vec<usize>) = if shared.is_dir() {
+    let dir = args
+        .iter()
+        .position(|a| a == "--dir")
+        .and_then(|i| args.get(i + 1))
+        .map(PathBuf::from);
+    let (paths, ks): (Vec<PathBuf>, Vec<usize>) = if let Some(dir) = dir {
+        let mut paths: Vec<PathBuf> = std::fs::read_dir(&dir)
+            .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| MeshFormat::from_path(p).is_some())
+            .collect();
+        paths.sort();
+        (paths, vec![DEFAULT_REGIONS, 18])
+    } else if shared.is_dir() {
         let names: &[&str] = if large { &LARGE } else { &SMALL };
         let ks = match (large, verify) {
             (true, _) => vec![12, 18],
@@ -77,7 +93,9 @@ fn main() {
             continue;
         };
         let name = path.file_stem().unwrap_or_default().to_string_lossy();
-        for &k in &ks {
+        // Each further component needs a region of its own.
+        let extra = default_region_count(&imported.mesh) - DEFAULT_REGIONS;
+        for k in ks.iter().map(|k| k + extra) {
             total += 1;
             let settings = EncodeSettings {
                 segment: SegmentOptions {
