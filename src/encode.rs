@@ -17,8 +17,8 @@ use crate::format::{self, simplify::DEFAULT_RELATIVE_TOLERANCE, EncodeError, Enc
 use crate::mesh::Mesh;
 use crate::representation::{InvalidRepresentation, Metadata, Representation};
 use crate::segment::{
-    dissolve_regions, segment_with, split_regions, Cut, EllipsoidMetric, Progress, SegmentError,
-    SegmentOptions, Segmentation, Split,
+    dissolve_regions, segment_with, split_regions, Cut, EllipsoidMetric, Progress, RegionCount,
+    SegmentError, SegmentOptions, Segmentation, Split,
 };
 use glam::DVec3;
 
@@ -127,6 +127,61 @@ pub fn encode_mesh(
     settings: &EncodeSettings,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Encoded, EncodeMeshError> {
+    let (score, encoded) = encode_checked(mesh, settings, progress)?;
+    let RegionCount::Fixed(requested) = settings.segment.regions else {
+        return Ok(encoded);
+    };
+    if !settings.verify || score.0 < DOES_NOT_DECODE {
+        return Ok(encoded);
+    }
+    // No file at the requested count decodes at all, however mended: a file nobody can
+    // read is of no use, so the count is raised by half, a few times, and the best file
+    // kept (the first that decodes, clean or not, ends it). armadillo at K = 12, whose
+    // regions fold over their ellipsoids however they are split, decodes clean at 18.
+    let mut best = (score, encoded);
+    let mut k = requested;
+    for _ in 0..MAX_REGION_RAISES {
+        let raised = (k + k.div_ceil(2)).min(mesh.face_count());
+        if raised <= k {
+            break;
+        }
+        k = raised;
+        let settings = EncodeSettings {
+            segment: SegmentOptions {
+                regions: RegionCount::Fixed(k),
+                ..settings.segment.clone()
+            },
+            ..settings.clone()
+        };
+        let Ok((score, mut encoded)) = encode_checked(mesh, &settings, progress) else {
+            break;
+        };
+        encoded.verification.requested_regions = requested;
+        encoded.verification.raised_regions = Some(k);
+        if score < best.0 {
+            best = (score, encoded);
+        }
+        if best.0 .0 < DOES_NOT_DECODE {
+            break;
+        }
+    }
+    Ok(best.1)
+}
+
+/// How many times [`encode_mesh`] raises the region count by half when no file at the
+/// requested count decodes: 12 becomes 18, then 27.
+pub const MAX_REGION_RAISES: usize = 2;
+
+/// The rank of a [`Score`] whose file does not decode at all.
+const DOES_NOT_DECODE: u8 = 2;
+
+/// [`encode_mesh`] at the requested region count: the file, mended when checked, and how
+/// it decodes ([`Verdict::score`]; clean when not checked).
+fn encode_checked(
+    mesh: &Mesh,
+    settings: &EncodeSettings,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<(Score, Encoded), EncodeMeshError> {
     let tolerance = settings.simplify_tolerance;
     if !(tolerance.is_finite() && tolerance >= 0.0) {
         return Err(EncodeMeshError::InvalidOption {
@@ -141,15 +196,14 @@ pub fn encode_mesh(
         requested_regions: requested,
         rounds: 0,
         tried: 0,
+        raised_regions: None,
         problem: None,
     };
     if !settings.verify {
         let (stored, boundary_points) = represent(mesh, &segmentation, settings, &[])?;
-        return Ok(Encoded::new(
-            stored,
-            segmentation,
-            boundary_points,
-            verification,
+        return Ok((
+            Verdict::Clean.score(),
+            Encoded::new(stored, segmentation, boundary_points, verification),
         ));
     }
     // Decode what was written; mend the regions the decoder could not mesh cleanly and
@@ -272,9 +326,9 @@ pub fn encode_mesh(
         fidelity = vec![Fidelity::Smoothed; segmentation.region_count()];
     }
     // The loop keeps an encoding before it can break.
-    best.map(|(_, mut encoded)| {
+    best.map(|(score, mut encoded)| {
         encoded.verification.tried = verification.rounds;
-        encoded
+        (score, encoded)
     })
     .ok_or_else(|| EncodeMeshError::Unreachable("internal error: no encoding was kept".into()))
 }
@@ -303,6 +357,9 @@ pub struct Verification {
     /// Rounds of mending tried in all: more than `rounds` when no round made the file
     /// clean and an earlier one was kept.
     pub tried: usize,
+    /// The region count the segmentation was raised to, when no file at the requested
+    /// count decoded at all (see [`encode_mesh`]).
+    pub raised_regions: Option<usize>,
     /// What is still wrong with the decoded file, when mending could not make it clean
     /// (`None`: it decodes clean, or it was not checked).
     pub problem: Option<String>,
@@ -722,13 +779,14 @@ pub fn encode_to_target(
         }
         let s = EncodeSettings {
             segment: SegmentOptions {
-                regions: crate::segment::RegionCount::Fixed(k),
+                regions: RegionCount::Fixed(k),
                 ..settings.segment.clone()
             },
             simplify_tolerance: tolerance,
             ..settings.clone()
         };
-        let encoded = encode_mesh(mesh, &s, &mut |_| {})?;
+        // The search chooses the region count itself: no raising.
+        let (_, encoded) = encode_checked(mesh, &s, &mut |_| {})?;
         let measured = measure_encoding(mesh, &encoded.bytes)?;
         let bytes = store_measurement(&encoded, &measured)?;
         let p = Probe {

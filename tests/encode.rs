@@ -303,3 +303,22 @@ fn a_file_that_decodes_is_kept_over_one_that_does_not() {
     assert_eq!(v.problem.is_none(), out.check.is_clean(), "{:?}", v.problem);
     assert!(out.check.manifold, "{:?}", out.check);
 }
+
+/// A file that does not decode at all is of no use to anyone: when no mending makes the file
+/// at the requested region count decode, the encoder segments again with half as many
+/// regions more. armadillo at K = 12 has regions that fold over their ellipsoids however
+/// they are split (24 rounds of mending left it undecodable); at 18 it decodes clean.
+#[test]
+fn when_no_file_at_the_requested_count_decodes_the_count_is_raised() {
+    let Some(mesh) = common::shared_mesh("armadillo") else {
+        return;
+    };
+    let encoded = encode_mesh(&mesh, &settings(12), &mut |_| {}).unwrap();
+    let v = &encoded.verification;
+    assert_eq!(v.requested_regions, 12);
+    assert_eq!(v.raised_regions, Some(18), "{v:?}");
+    assert!(encoded.representation.region_count() >= 18);
+    let check = decoded_check(&encoded.bytes);
+    assert!(check.is_clean(), "{check:?}");
+    assert_eq!(v.problem, None);
+}

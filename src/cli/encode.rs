@@ -75,6 +75,9 @@ struct EncodeReport {
     /// Rounds of mending tried in all (more than split_rounds when none made the file
     /// clean and an earlier one was kept).
     mending_rounds_tried: usize,
+    /// The region count the segmentation was raised to when no file at the requested
+    /// count decoded at all (null: not raised).
+    raised_regions: Option<usize>,
     /// "clean", "not checked" (--no-verify), or what is still wrong with the decoded file.
     decode_check: String,
     arcs: usize,
@@ -207,6 +210,7 @@ pub fn run(args: &EncodeArgs) -> Result<(), CliError> {
         requested_regions: encoded.verification.requested_regions,
         split_rounds: encoded.verification.rounds,
         mending_rounds_tried: encoded.verification.tried,
+        raised_regions: encoded.verification.raised_regions,
         decode_check: match (&encoded.verification.problem, args.no_verify) {
             (_, true) => "not checked".into(),
             (None, false) => "clean".into(),
@@ -266,10 +270,18 @@ fn print_report(r: &EncodeReport) {
         "wrote {}: {} bytes — {} regions, {} arcs, {} boundary points ({} before simplification), {} bits",
         r.output, r.bytes, r.regions, r.arcs, r.points_after_simplification, r.boundary_points, r.bits
     );
-    if r.regions != r.requested_regions {
+    if let Some(raised) = r.raised_regions {
+        eprintln!(
+            "{} regions asked for, but no file with them decoded at all: segmented again into {raised}",
+            r.requested_regions
+        );
+    }
+    if r.regions != r.raised_regions.unwrap_or(r.requested_regions) {
         eprintln!(
             "{} regions asked for, {} stored: {} round(s) mended the regions the decoder could not mesh cleanly",
-            r.requested_regions, r.regions, r.split_rounds
+            r.raised_regions.unwrap_or(r.requested_regions),
+            r.regions,
+            r.split_rounds
         );
     }
     eprintln!(
