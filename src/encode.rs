@@ -135,13 +135,16 @@ pub fn encode_mesh(
         return Ok(encoded);
     }
     // No file at the requested count decodes at all, however mended: a file nobody can
-    // read is of no use, so the count is raised by half, a few times, and the best file
-    // kept (the first that decodes, clean or not, ends it). armadillo at K = 12, whose
+    // read is of no use, so the count is raised by half (beyond one region per further
+    // component), a few times, and the best file kept (the first that decodes, clean or not, ends it). armadillo at K = 12, whose
     // regions fold over their ellipsoids however they are split, decodes clean at 18.
     let mut best = (score, encoded);
     let mut k = requested;
+    // Each further connected component holds a region of its own: the count raised is that
+    // of the regions beyond those (dragon's 875 fragments stay one region each).
+    let pieces = mesh.topology().component_count().saturating_sub(1);
     for _ in 0..MAX_REGION_RAISES {
-        let raised = (k + k.div_ceil(2)).min(mesh.face_count());
+        let raised = (k + k.saturating_sub(pieces).div_ceil(2)).min(mesh.face_count());
         if raised <= k {
             break;
         }
@@ -212,6 +215,9 @@ fn encode_checked(
     // a sound mesh (closed where the source is, manifold, consistently oriented) over one
     // that is not, then the fewest flipped and degenerate triangles, then the fewest
     // regions to blame, then the earliest.
+    // A source that is not manifold gives a decoded mesh that is not either (see
+    // MeshCheck::is_clean_from): no round could mend that.
+    let source_manifold = mesh.topology().is_manifold();
     let max_added = MAX_SPLIT_REGIONS.max(requested);
     let mut best: Option<(Score, Encoded)> = None;
     // How faithfully each region's boundaries are stored, for the present segmentation.
@@ -227,7 +233,7 @@ fn encode_checked(
             Err(EncodeMeshError::Representation(_)) if best.is_some() => break,
             Err(e) => return Err(e),
         };
-        let verdict = verify(&stored.bytes)?;
+        let verdict = verify(&stored.bytes, source_manifold)?;
         let score = verdict.score();
         let rank = score.0;
         let (blamed, problem) = match verdict {
@@ -361,7 +367,9 @@ pub struct Verification {
     /// count decoded at all (see [`encode_mesh`]).
     pub raised_regions: Option<usize>,
     /// What is still wrong with the decoded file, when mending could not make it clean
-    /// (`None`: it decodes clean, or it was not checked).
+    /// (`None`: it decodes clean, or it was not checked). Clean as far as the source
+    /// allows: a source that is not manifold gives a mesh that is not either
+    /// ([`crate::remesh::assemble::MeshCheck::is_clean_from`]).
     pub problem: Option<String>,
 }
 
@@ -401,22 +409,22 @@ struct Faults {
 /// Decodes `bytes` as any reader would ([`format::Limits::default`],
 /// [`crate::remesh::RemeshOptions::default`]) and says whether the mesh is clean
 /// ([`crate::remesh::assemble::MeshCheck::is_clean`]) and, if not, which regions to blame.
-fn verify(bytes: &[u8]) -> Result<Verdict, EncodeMeshError> {
+fn verify(bytes: &[u8], source_manifold: bool) -> Result<Verdict, EncodeMeshError> {
     use crate::remesh::assemble::{problem_regions, region_faults};
     use crate::remesh::{remesh, RemeshError, RemeshOptions};
     let representation = format::decode(bytes, &format::Limits::default())?;
     let options = RemeshOptions::default();
     match remesh(&representation, &options) {
-        Ok(out) if out.check.is_clean() => Ok(Verdict::Clean),
+        Ok(out) if out.check.is_clean_from(source_manifold) => Ok(Verdict::Clean),
         Ok(out) => {
             let c = out.check;
             let problem = format!("decodes with {}", c.faults());
-            let blamed = problem_regions(&representation, &out)
+            let blamed = problem_regions(&representation, &out, source_manifold)
                 .into_iter()
                 .map(|region| Split { region, cut: None })
                 .collect();
             let faults = Faults {
-                unsound: !c.is_sound(),
+                unsound: !c.is_sound_from(source_manifold),
                 bad_triangles: c.flipped + c.degenerate,
             };
             Ok(Verdict::Dirty(faults, blamed, problem))

@@ -72,13 +72,28 @@ impl MeshCheck {
     /// manifold and consistently oriented, and closed unless the representation has border
     /// arcs.
     pub fn is_clean(&self) -> bool {
-        self.degenerate == 0 && self.flipped == 0 && self.is_sound()
+        self.is_clean_from(true)
     }
 
     /// Whether the mesh's topology is as it should be, whatever its triangles' shapes:
     /// manifold, consistently oriented, and closed unless the representation has border arcs.
     pub fn is_sound(&self) -> bool {
-        self.manifold && self.consistently_oriented && (self.closed || self.has_border_arcs)
+        self.is_sound_from(true)
+    }
+
+    /// [`Self::is_clean`] for a mesh decoded from a source that is manifold or not
+    /// (`source_manifold`): where the source is not (a scan's fins and fragments meeting at
+    /// an edge or a vertex, a teapot's spout), its regions meet where its parts do, and the
+    /// decoded mesh is not manifold either; the rest is asked all the same.
+    pub fn is_clean_from(&self, source_manifold: bool) -> bool {
+        self.degenerate == 0 && self.flipped == 0 && self.is_sound_from(source_manifold)
+    }
+
+    /// [`Self::is_sound`] for a source that is manifold or not (see [`Self::is_clean_from`]).
+    pub fn is_sound_from(&self, source_manifold: bool) -> bool {
+        (self.manifold || !source_manifold)
+            && self.consistently_oriented
+            && (self.closed || self.has_border_arcs)
     }
 
     /// What keeps the mesh from being clean, in words: "2 flipped and 0 degenerate
@@ -1479,16 +1494,18 @@ fn face_faults<'a>(
 
 /// The regions to blame for what [`check_mesh`] found wrong with a remeshed representation,
 /// in increasing order: the regions of degenerate and flipped triangles, and of the
-/// triangles on edges that are not manifold, on the border (when the representation has no
-/// border arcs), or run the same way by their two triangles. Empty when the mesh is clean,
-/// or when its faults (a vertex with two fans of triangles) name no edge.
-pub fn problem_regions(rep: &Representation, out: &Remeshed) -> Vec<u32> {
+/// triangles on edges that are not manifold (unless the source is not either:
+/// `source_manifold`, see [`MeshCheck::is_clean_from`]), on the border (when the
+/// representation has no border arcs), or run the same way by their two triangles. Empty
+/// when the mesh is clean, or when its faults (a vertex with two fans of triangles) name no
+/// edge.
+pub fn problem_regions(rep: &Representation, out: &Remeshed, source_manifold: bool) -> Vec<u32> {
     let mesh = &out.mesh;
     let mut blamed: std::collections::BTreeSet<u32> = face_faults(rep, mesh, &out.face_regions)
         .map(|(r, _)| r)
         .collect();
     let c = out.check;
-    if !c.is_sound() {
+    if !c.is_sound_from(source_manifold) {
         let t = mesh.topology();
         let faces = mesh.faces();
         for (f, (tri, &r)) in faces.iter().zip(&out.face_regions).enumerate() {
@@ -1499,7 +1516,8 @@ pub fn problem_regions(rep: &Representation, out: &Remeshed) -> Vec<u32> {
                     (0..3).any(|k| other[k] == a && other[(k + 1) % 3] == b)
                 }),
                 // A border edge, or an edge of three or more triangles.
-                None => !t.is_border_edge(f, i) || !c.has_border_arcs,
+                None if t.is_border_edge(f, i) => !c.has_border_arcs,
+                None => source_manifold,
             });
             if bad {
                 blamed.insert(r);
@@ -1585,6 +1603,24 @@ mod tests {
             holed.faults(),
             "0 flipped and 0 degenerate triangles, not consistently oriented, not closed"
         );
+        // Not manifold: clean only when its source is not either, and nothing else wrong.
+        let pinched = MeshCheck {
+            manifold: false,
+            ..clean
+        };
+        assert!(!pinched.is_clean() && pinched.is_clean_from(false));
+        assert!(!pinched.is_sound() && pinched.is_sound_from(false));
+        assert!(!MeshCheck {
+            flipped: 1,
+            ..pinched
+        }
+        .is_clean_from(false));
+        assert!(!MeshCheck {
+            closed: false,
+            ..pinched
+        }
+        .is_sound_from(false));
+        assert!(clean.is_clean_from(false) && !holed.is_sound_from(false));
     }
 
     #[test]
