@@ -1046,3 +1046,28 @@ fn a_region_whose_outer_loop_collapsed_keeps_its_other_loops() {
     assert!(chart.contains(DVec3::X) && chart.contains(DVec3::new(0.0, 0.6, -0.8)));
     assert!(!chart.contains(DVec3::Z));
 }
+
+/// Untangling drops boundary points until a region's loops stop crossing in its chart; where
+/// a whole loop folds (the closest points of a boundary deep inside a thin ellipsoid jump
+/// between its sides), that leaves a triangle, turned over. The decoder then tries charting
+/// such regions along the rays from their ellipsoids' centres, where those see the loops
+/// uncrossed: teddy at K = 18, written without the encoder's check, decodes clean that way
+/// (1 flipped triangle when every region was untangled or every region charted radially).
+#[test]
+fn regions_whose_loops_fold_are_charted_along_rays_instead_of_untangled() {
+    let Some(mesh) = common::shared_mesh("teddy") else {
+        return;
+    };
+    let settings = EncodeSettings {
+        segment: SegmentOptions {
+            regions: RegionCount::Fixed(18),
+            ..SegmentOptions::default()
+        },
+        verify: false,
+        ..EncodeSettings::default()
+    };
+    let encoded = encode_mesh(&mesh, &settings, &mut |_| {}).unwrap();
+    let rep = decode(&encoded.bytes, &Limits::default()).unwrap();
+    let out = remesh(&rep, &RemeshOptions::default()).unwrap();
+    assert!(out.check.is_clean(), "{:?}", out.check);
+}

@@ -141,6 +141,7 @@ impl Prepared {
             tolerance: self.tolerance,
             areas: &self.areas,
             projection: Projection::Closest,
+            radial_where_untangled: false,
         }
     }
 }
@@ -281,19 +282,29 @@ fn assemble_unsubdivided(
             false,
         ),
     ];
-    // Each with the boundary reaching the ellipsoids at their closest points, then along
-    // the rays from their centres (section 5.1's radial map, which suits regions whose
-    // boundary lies deep inside a thin ellipsoid better).
+    // Each with the boundary reaching the ellipsoids at their closest points; then so,
+    // except for the regions whose loops cross that way and not along the rays from their
+    // ellipsoids' centres; then along the rays for every region (section 5.1's radial map,
+    // which suits regions whose boundary lies deep inside a thin ellipsoid better).
     let mut best: Option<((bool, usize), Remeshed)> = None;
     let mut last_error = None;
-    let attempts = [Projection::Closest, Projection::Radial]
-        .into_iter()
-        .flat_map(|p| attempts.iter().enumerate().map(move |(k, a)| (p, k, a)));
-    for (projection, k, (attempt, untangle)) in attempts {
+    let attempts = [
+        (Projection::Closest, false),
+        (Projection::Closest, true),
+        (Projection::Radial, false),
+    ]
+    .into_iter()
+    .flat_map(|p| attempts.iter().enumerate().map(move |(k, a)| (p, k, a)));
+    for ((projection, radial_where_untangled), k, (attempt, untangle)) in attempts {
         if k == 1 && settings.max_new_points == 0 {
             continue;
         }
+        // Mixed projections only differ where untangling runs.
+        if radial_where_untangled && !untangle {
+            continue;
+        }
         plan.projection = projection;
+        plan.radial_where_untangled = radial_where_untangled;
         match plan.mesh(attempt, *untangle) {
             Ok(out) => {
                 let c = out.check;
@@ -328,6 +339,9 @@ struct Plan<'a> {
     areas: &'a [f64],
     /// How boundary points reach a region's own ellipsoid in its chart.
     projection: Projection,
+    /// With untangling, a region whose loops cross in its chart and do not along the rays
+    /// from its ellipsoid's centre is charted that way instead of untangled.
+    radial_where_untangled: bool,
 }
 
 impl Plan<'_> {
@@ -380,8 +394,15 @@ impl Plan<'_> {
         } = *self;
         let mut refined = refine_arcs(rep, settings);
         let mut charts = Vec::new();
+        let mut projections = vec![self.projection; rep.region_count()];
         if untangle_arcs {
-            charts = untangle(rep, &mut refined.arcs, &refined.points, self.projection);
+            (charts, projections) = untangle(
+                rep,
+                &mut refined.arcs,
+                &refined.points,
+                self.projection,
+                self.radial_where_untangled,
+            );
         }
         let mut pool = Pool::new(&refined.points);
         let mut pieces = Vec::with_capacity(rep.region_count());
@@ -443,12 +464,13 @@ impl Plan<'_> {
                 .and_then(Option::take)
                 .filter(|(l, _)| *l == loop_points)
                 .map(|(_, chart)| Ok(chart));
+            let projection = projections.get(r).copied().unwrap_or(self.projection);
             let chart = match known.unwrap_or_else(|| {
                 RegionChart::with_projection(
                     region,
                     &stand_in,
                     &loop_points,
-                    projection_onto(&stand_in, ellipsoid, self.projection),
+                    projection_onto(&stand_in, ellipsoid, projection),
                 )
             }) {
                 Ok(chart) => chart,
@@ -505,21 +527,46 @@ fn untangle(
     chains: &mut [Vec<u32>],
     points: &[DVec3],
     projection: Projection,
-) -> Vec<KnownChart> {
+    radial_where_crossing: bool,
+) -> (Vec<KnownChart>, Vec<Projection>) {
     // Regions whose loops changed since they were last looked at: the others would find
     // the same crossings, whose drops were refused.
     let mut changed = vec![true; rep.cycles.len()];
     let mut charts: Vec<KnownChart> = vec![None; rep.cycles.len()];
-    for _ in 0..UNTANGLE_ROUNDS {
+    let mut projections = vec![projection; rep.cycles.len()];
+    for round in 0..UNTANGLE_ROUNDS {
         // (arc, position in its chain) of the points to drop.
         let mut drop: Vec<(u32, usize)> = Vec::new();
         for (r, cycles) in rep.cycles.iter().enumerate() {
-            if !cycles.is_empty() && changed[r] {
-                charts[r] = region_crossings(r as u32, rep, chains, points, projection, &mut drop);
+            if cycles.is_empty() || !changed[r] {
+                continue;
+            }
+            let before = drop.len();
+            charts[r] = region_crossings(r as u32, rep, chains, points, projections[r], &mut drop);
+            // Untangling drops boundary points until the loops stop crossing, down to a
+            // triangle when a whole loop folds (the closest points of a boundary deep
+            // inside a thin ellipsoid jump between its sides: a bunny's ear became one
+            // triangle, turned over). Where the rays from the centre see the loops
+            // uncrossed, they chart the region instead.
+            if radial_where_crossing && round == 0 && drop.len() > before {
+                let mut radial_drop = Vec::new();
+                let radial = region_crossings(
+                    r as u32,
+                    rep,
+                    chains,
+                    points,
+                    Projection::Radial,
+                    &mut radial_drop,
+                );
+                if radial.is_some() && radial_drop.is_empty() {
+                    drop.truncate(before);
+                    charts[r] = radial;
+                    projections[r] = Projection::Radial;
+                }
             }
         }
         if drop.is_empty() {
-            return charts;
+            return (charts, projections);
         }
         changed.fill(false);
         drop.sort_unstable();
@@ -542,7 +589,7 @@ fn untangle(
             }
         }
     }
-    charts
+    (charts, projections)
 }
 
 /// A region's loops and the chart [`region_crossings`] made of them.
