@@ -49,11 +49,11 @@ fn main() {
     let verify = !args.iter().any(|a| a == "--no-verify");
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let shared = root.join("../shared/meshes");
-    let dir = args
-        .iter()
-        .position(|a| a == "--dir")
-        .and_then(|i| args.get(i + 1))
-        .map(PathBuf::from);
+    let dir = args.iter().position(|a| a == "--dir").map(|i| {
+        args.get(i + 1)
+            .map(PathBuf::from)
+            .expect("--dir needs a folder")
+    });
     let (paths, ks): (Vec<PathBuf>, Vec<usize>) = if let Some(dir) = dir {
         let mut paths: Vec<PathBuf> = std::fs::read_dir(&dir)
             .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))

@@ -225,6 +225,8 @@ fn encode_checked(
     // The segmentations checked so far: mending must not go round in circles (dissolving
     // the small region a split made gives back the segmentation before the split).
     let mut checked: Vec<Vec<u32>> = vec![segmentation.labels.clone()];
+    // Files written and checked: the first, then one a round of mending that got that far.
+    let mut verified = 0usize;
     loop {
         let (stored, boundary_points) = match represent(mesh, &segmentation, settings, &fidelity) {
             Ok(r) => r,
@@ -234,6 +236,7 @@ fn encode_checked(
             Err(e) => return Err(e),
         };
         let verdict = verify(&stored.bytes, source_manifold)?;
+        verified += 1;
         let score = verdict.score();
         let rank = score.0;
         let (blamed, problem) = match verdict {
@@ -264,7 +267,10 @@ fn encode_checked(
         // has them.
         let mut refined = false;
         for s in &blamed {
-            if let Some(f) = fidelity.get_mut(s.region as usize).filter(|_| rank == 2) {
+            if let Some(f) = fidelity
+                .get_mut(s.region as usize)
+                .filter(|_| rank == DOES_NOT_DECODE)
+            {
                 if let Some(next) = f.next() {
                     *f = next;
                     refined = true;
@@ -333,7 +339,7 @@ fn encode_checked(
     }
     // The loop keeps an encoding before it can break.
     best.map(|(score, mut encoded)| {
-        encoded.verification.tried = verification.rounds;
+        encoded.verification.tried = verified.saturating_sub(1);
         (score, encoded)
     })
     .ok_or_else(|| EncodeMeshError::Unreachable("internal error: no encoding was kept".into()))
@@ -407,8 +413,9 @@ struct Faults {
 }
 
 /// Decodes `bytes` as any reader would ([`format::Limits::default`],
-/// [`crate::remesh::RemeshOptions::default`]) and says whether the mesh is clean
-/// ([`crate::remesh::assemble::MeshCheck::is_clean`]) and, if not, which regions to blame.
+/// [`crate::remesh::RemeshOptions::default`]) and says whether the mesh is clean as far as
+/// the source allows ([`crate::remesh::assemble::MeshCheck::is_clean_from`]) and, if not,
+/// which regions to blame.
 fn verify(bytes: &[u8], source_manifold: bool) -> Result<Verdict, EncodeMeshError> {
     use crate::remesh::assemble::{problem_regions, region_faults};
     use crate::remesh::{remesh, RemeshError, RemeshOptions};
@@ -739,13 +746,14 @@ pub struct RateControlled {
     pub probes: Vec<Probe>,
 }
 
-/// Most regions rate control tries.
+/// Most regions rate control tries (beyond one for each further connected component).
 pub const MAX_RATE_REGIONS: usize = 256;
 
 /// Encodes `mesh` to meet `target`, searching the region count K (the setting that moves
 /// size and error most) and then the boundary tolerance.
 ///
-/// Strategy: K = 4, 8, 16, … doubling until the target's side flips (the error drops under
+/// Strategy: K = 4, 8, 16, … (from the mesh's component count when it has more pieces)
+/// doubling until the target's side flips (the error drops under
 /// the RMS target, or the file no longer fits the byte budget), then bisection between the
 /// last two K; every probe is a full encode, decode and measurement, so the cost is about
 /// 2·log₂ K probes. For an RMS target the chosen K then tries boundary tolerances 2× and 4×
@@ -774,9 +782,10 @@ pub fn encode_to_target(
         }
         _ => {}
     }
-    // Every connected component needs a region of its own.
+    // Every connected component needs a region of its own; the search spends up to
+    // MAX_RATE_REGIONS beyond one for each further component.
     let min_k = mesh.topology().component_count().max(1);
-    let max_k = MAX_RATE_REGIONS.max(min_k).min(mesh.face_count().max(1));
+    let max_k = (min_k - 1 + MAX_RATE_REGIONS).min(mesh.face_count().max(1));
     let mut tried: Vec<(Probe, RateControlled)> = Vec::new();
     let mut probe = |k: usize, tolerance: f64, tried: &mut Vec<(Probe, RateControlled)>| {
         if let Some((p, _)) = tried
@@ -842,9 +851,6 @@ pub fn encode_to_target(
     }
     if let Some(mut hi) = above {
         let mut lo = (below + 1).max(min_k);
-        if below == 0 {
-            lo = min_k;
-        }
         while lo < hi {
             let mid = (lo + hi) / 2;
             if beyond(&probe(mid, tolerance, &mut tried)?) {

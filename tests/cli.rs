@@ -294,20 +294,28 @@ fn a_mesh_of_more_pieces_than_the_default_regions_encodes_with_one_more_region_e
     let out = ellip(&["encode", &input, "-o", &output, "-k", "12"]);
     assert_clean_failure(&out, "-k 12 for 14 pieces");
     assert!(String::from_utf8_lossy(&out.stderr).contains("14 separate components"));
-    // Rate control searches from one region per piece.
+    // Rate control searches from one region per piece: a budget a byte under the default
+    // file's makes it bisect between 14 regions and the default 25.
+    let out = ellip(&["encode", &input, "-o", &output, "--json", "--quiet"]);
+    assert!(out.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("valid JSON");
+    let budget = v["bytes"].as_u64().unwrap() - 1;
+    std::fs::remove_file(&output).unwrap();
     let out = ellip(&[
         "encode",
         &input,
         "-o",
         &output,
         "--max-bytes",
-        "100000",
+        &budget.to_string(),
         "--json",
     ]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("valid JSON");
-    assert!(v["regions"].as_u64().unwrap() >= 14, "{v}");
-    assert!(v["bytes"].as_u64().unwrap() <= 100_000, "{v}");
+    let regions = v["regions"].as_u64().unwrap();
+    assert!((14..25).contains(&regions), "{v}");
+    assert!(v["bytes"].as_u64().unwrap() <= budget, "{v}");
+    assert!(v["rate_control_probes"].as_u64().unwrap() >= 2, "{v}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -306,7 +306,8 @@ fn assemble_unsubdivided(
         plan.projection = projection;
         plan.radial_where_untangled = radial_where_untangled;
         match plan.mesh(attempt, *untangle) {
-            Ok(out) => {
+            Ok(None) => {}
+            Ok(Some(out)) => {
                 let c = out.check;
                 if c.is_clean() {
                     return Ok(out);
@@ -347,12 +348,17 @@ struct Plan<'a> {
 impl Plan<'_> {
     /// Refines the arcs with `settings` (and untangles them if asked), triangulates every
     /// piece and joins them.
+    /// `None` when the attempt would repeat an earlier one: with
+    /// [`Plan::radial_where_untangled`], no region is charted radially.
     fn mesh(
         &self,
         settings: &RefineSettings,
         untangle_arcs: bool,
-    ) -> Result<Remeshed, RemeshError> {
-        let (positions, pieces) = self.pieces(settings, untangle_arcs, None)?;
+    ) -> Result<Option<Remeshed>, RemeshError> {
+        let (positions, pieces, switched) = self.pieces(settings, untangle_arcs, None)?;
+        if self.radial_where_untangled && !switched {
+            return Ok(None);
+        }
         // Meshed on the ellipsoids with the boundary's offsets blended in near the boundary,
         // over bands at least as wide as the target edge length.
         let pieces: Vec<Piece> = pieces
@@ -373,18 +379,19 @@ impl Plan<'_> {
             }
             Scheme::Parametric => triangulate_by_area(&pieces, positions.len(), budget)?,
         };
-        join(rep, options.max_vertices, positions, &pieces, meshes)
+        join(rep, options.max_vertices, positions, &pieces, meshes).map(Some)
     }
 
     /// The boundary vertex pool and every piece in its chart, settled
-    /// ([`settle_charts`]). With `faults`, a region whose chart or boundary triangulation
-    /// fails is noted there and left out instead of ending the attempt.
+    /// ([`settle_charts`]), and whether untangling charted a region radially instead
+    /// ([`Plan::radial_where_untangled`]). With `faults`, a region whose chart or boundary
+    /// triangulation fails is noted there and left out instead of ending the attempt.
     fn pieces(
         &self,
         settings: &RefineSettings,
         untangle_arcs: bool,
         mut faults: Option<&mut Vec<RegionFault>>,
-    ) -> Result<(Vec<DVec3>, Vec<Piece>), RemeshError> {
+    ) -> Result<(Vec<DVec3>, Vec<Piece>, bool), RemeshError> {
         let Plan {
             rep,
             options,
@@ -503,7 +510,8 @@ impl Plan<'_> {
         }
 
         settle_charts(rep, &mut pieces, spacing / 4.0, faults)?;
-        Ok((pool.positions, pieces))
+        let switched = projections.iter().any(|&p| p != self.projection);
+        Ok((pool.positions, pieces, switched))
     }
 }
 
@@ -542,15 +550,17 @@ fn untangle(
                 continue;
             }
             let before = drop.len();
-            charts[r] = region_crossings(r as u32, rep, chains, points, projections[r], &mut drop);
+            let crossings;
+            (charts[r], crossings) =
+                region_crossings(r as u32, rep, chains, points, projections[r], &mut drop);
             // Untangling drops boundary points until the loops stop crossing, down to a
             // triangle when a whole loop folds (the closest points of a boundary deep
             // inside a thin ellipsoid jump between its sides: a bunny's ear became one
             // triangle, turned over). Where the rays from the centre see the loops
             // uncrossed, they chart the region instead.
-            if radial_where_crossing && round == 0 && drop.len() > before {
+            if radial_where_crossing && round == 0 && crossings > 0 {
                 let mut radial_drop = Vec::new();
-                let radial = region_crossings(
+                let (radial, radial_crossings) = region_crossings(
                     r as u32,
                     rep,
                     chains,
@@ -558,7 +568,7 @@ fn untangle(
                     Projection::Radial,
                     &mut radial_drop,
                 );
-                if radial.is_some() && radial_drop.is_empty() {
+                if radial.is_some() && radial_crossings == 0 {
                     drop.truncate(before);
                     charts[r] = radial;
                     projections[r] = Projection::Radial;
@@ -598,7 +608,9 @@ type KnownChart = Option<(Vec<Vec<DVec3>>, RegionChart)>;
 /// Where a loop point sits in the refined arcs, if it may be dropped: (arc, position).
 type Droppable = Option<(u32, usize)>;
 
-/// Finds the crossings of one region's loops in its chart and, for each, a point to drop.
+/// Finds the crossings of one region's loops in its chart and, for each, a point to drop
+/// (where one of the two segments has a point that may be dropped); returns the chart and
+/// the number of crossings, droppable or not.
 fn region_crossings(
     region: u32,
     rep: &Representation,
@@ -606,12 +618,12 @@ fn region_crossings(
     points: &[DVec3],
     projection: Projection,
     drop: &mut Vec<(u32, usize)>,
-) -> KnownChart {
+) -> (KnownChart, usize) {
     let (Some(e), Some(cycles)) = (
         rep.ellipsoids.get(region as usize),
         rep.cycles.get(region as usize),
     ) else {
-        return None;
+        return (None, 0);
     };
     // Each loop vertex with the (arc, position) it can be dropped as, if any.
     let mut loops: Vec<Vec<(DVec3, Droppable)>> = Vec::new();
@@ -642,7 +654,7 @@ fn region_crossings(
     }
     let total: usize = loops.iter().map(Vec::len).sum();
     if loops.is_empty() || total > UNTANGLE_MAX_POINTS {
-        return None;
+        return (None, 0);
     }
     let loop_points: Vec<Vec<DVec3>> = loops
         .iter()
@@ -655,7 +667,7 @@ fn region_crossings(
         &loop_points,
         projection_onto(&surface, e, projection),
     ) else {
-        return None;
+        return (None, 0);
     };
     // Segments in the plane: (a, b, which point to drop if it crosses).
     let mut segments: Vec<(glam::DVec2, glam::DVec2, Droppable)> = Vec::new();
@@ -671,6 +683,7 @@ fn region_crossings(
         }
     }
     segments.sort_by(|s, t| s.0.x.min(s.1.x).total_cmp(&t.0.x.min(t.1.x)));
+    let mut crossings = 0;
     for (i, s) in segments.iter().enumerate() {
         let max_x = s.0.x.max(s.1.x);
         for t in segments.iter().skip(i + 1) {
@@ -678,13 +691,14 @@ fn region_crossings(
                 break;
             }
             if segments_cross(s.0, s.1, t.0, t.1) {
+                crossings += 1;
                 if let Some(tag) = s.2.or(t.2) {
                     drop.push(tag);
                 }
             }
         }
     }
-    Some((loop_points, chart))
+    (Some((loop_points, chart)), crossings)
 }
 
 /// Whether two segments cross at a point inside both (shared endpoints do not count).

@@ -86,10 +86,14 @@ pub const DEFAULT_REGIONS: usize = 12;
 
 /// The region count to use when none is asked for: [`DEFAULT_REGIONS`] for a mesh in one
 /// piece, and one more for each further connected component, which needs a region of its
-/// own (scans come with loose fragments: Stanford's dragon has hundreds). A fixed count
-/// below the component count is refused ([`SegmentError::TooFewRegions`]).
+/// own (scans come with loose fragments: Stanford's dragon has hundreds); at most one a
+/// face. A fixed count below the component count is refused
+/// ([`SegmentError::TooFewRegions`]).
 pub fn default_region_count(mesh: &Mesh) -> usize {
-    DEFAULT_REGIONS + mesh.topology().component_count().saturating_sub(1)
+    // At most one region a face (every component has a face).
+    (DEFAULT_REGIONS + mesh.topology().component_count().saturating_sub(1))
+        .min(mesh.face_count())
+        .max(1)
 }
 
 impl Default for SegmentOptions {
