@@ -411,6 +411,11 @@ impl Plan<'_> {
                 self.radial_where_untangled,
             );
         }
+        let switched = projections.iter().any(|&p| p != self.projection);
+        if self.radial_where_untangled && !switched {
+            // The attempt would repeat the one without radial charts: no charts, no pieces.
+            return Ok((Vec::new(), Vec::new(), false));
+        }
         let mut pool = Pool::new(&refined.points);
         let mut pieces = Vec::with_capacity(rep.region_count());
         for (r, cycles) in rep.cycles.iter().enumerate() {
@@ -510,7 +515,6 @@ impl Plan<'_> {
         }
 
         settle_charts(rep, &mut pieces, spacing / 4.0, faults)?;
-        let switched = projections.iter().any(|&p| p != self.projection);
         Ok((pool.positions, pieces, switched))
     }
 }
