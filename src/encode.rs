@@ -131,13 +131,15 @@ pub fn encode_mesh(
     let RegionCount::Fixed(requested) = settings.segment.regions else {
         return Ok(encoded);
     };
-    if !settings.verify || score.0 < DOES_NOT_DECODE {
+    if !settings.verify || score.0 == CLEAN {
         return Ok(encoded);
     }
-    // No file at the requested count decodes at all, however mended: a file nobody can
-    // read is of no use, so the count is raised by half (beyond one region per further
-    // component), a few times, and the best file kept (the first that decodes, clean or not, ends it). armadillo at K = 12, whose
-    // regions fold over their ellipsoids however they are split, decodes clean at 18.
+    // No file at the requested count decodes clean, however mended: the count is raised by
+    // half (beyond one region per further component), a few times, and the best file kept
+    // (the first clean one ends it). armadillo at K = 12, whose regions fold over their
+    // ellipsoids however they are split, does not decode at all and decodes clean at 18;
+    // the npm bunny at K = 12, whose ears' loops fold in their charts (2 flipped
+    // triangles), decodes clean at 18.
     let mut best = (score, encoded);
     let mut k = requested;
     // Each further connected component holds a region of its own: the count raised is that
@@ -164,7 +166,7 @@ pub fn encode_mesh(
         if score < best.0 {
             best = (score, encoded);
         }
-        if best.0 .0 < DOES_NOT_DECODE {
+        if best.0 .0 == CLEAN {
             break;
         }
     }
@@ -172,8 +174,11 @@ pub fn encode_mesh(
 }
 
 /// How many times [`encode_mesh`] raises the region count by half when no file at the
-/// requested count decodes: 12 becomes 18, then 27.
+/// requested count decodes clean: 12 becomes 18, then 27.
 pub const MAX_REGION_RAISES: usize = 2;
+
+/// The rank of a [`Score`] whose file decodes clean.
+const CLEAN: u8 = 0;
 
 /// The rank of a [`Score`] whose file does not decode at all.
 const DOES_NOT_DECODE: u8 = 2;
@@ -370,7 +375,7 @@ pub struct Verification {
     /// clean and an earlier one was kept.
     pub tried: usize,
     /// The region count the segmentation was raised to, when no file at the requested
-    /// count decoded at all (see [`encode_mesh`]).
+    /// count decoded clean (see [`encode_mesh`]).
     pub raised_regions: Option<usize>,
     /// What is still wrong with the decoded file, when mending could not make it clean
     /// (`None`: it decodes clean, or it was not checked). Clean as far as the source
@@ -421,8 +426,31 @@ fn verify(bytes: &[u8], source_manifold: bool) -> Result<Verdict, EncodeMeshErro
     use crate::remesh::{remesh, RemeshError, RemeshOptions};
     let representation = format::decode(bytes, &format::Limits::default())?;
     let options = RemeshOptions::default();
+    // A file that does not decode, or only with regions left out. The decoder reports the
+    // region its last attempt stopped at, which is often not where its first (and best)
+    // attempt failed. Blamed instead: the first region that fails in the first attempt, cut
+    // between the two sheets of its fold when the chart shows one. One region a round:
+    // splitting every failing region at once was measured worse (dino at K = 12 took 26
+    // regions instead of 15).
+    let fails = |region: u32, what: String| -> Result<Verdict, EncodeMeshError> {
+        let split = region_faults(&representation, &options)?
+            .first()
+            .map(|f| Split {
+                region: f.region,
+                cut: f.crossing.and_then(cut_between),
+            })
+            .unwrap_or(Split { region, cut: None });
+        Ok(Verdict::Fails(
+            vec![split],
+            format!("does not decode: region {region}: {what}"),
+        ))
+    };
     match remesh(&representation, &options) {
         Ok(out) if out.check.is_clean_from(source_manifold) => Ok(Verdict::Clean),
+        Ok(out) if !out.omitted.is_empty() => fails(
+            out.omitted[0],
+            format!("cannot be meshed ({} regions left out)", out.omitted.len()),
+        ),
         Ok(out) => {
             let c = out.check;
             let problem = format!("decodes with {}", c.faults());
@@ -436,24 +464,7 @@ fn verify(bytes: &[u8], source_manifold: bool) -> Result<Verdict, EncodeMeshErro
             };
             Ok(Verdict::Dirty(faults, blamed, problem))
         }
-        // The decoder reports the region its last attempt stopped at, which is often not
-        // where its first (and best) attempt failed. Blamed instead: the first region that
-        // fails in the first attempt, cut between the two sheets of its fold when the chart
-        // shows one. One region a round: splitting every failing region at once was measured
-        // worse (dino at K = 12 took 26 regions instead of 15).
-        Err(RemeshError::Region { region, what }) => {
-            let split = region_faults(&representation, &options)?
-                .first()
-                .map(|f| Split {
-                    region: f.region,
-                    cut: f.crossing.and_then(cut_between),
-                })
-                .unwrap_or(Split { region, cut: None });
-            Ok(Verdict::Fails(
-                vec![split],
-                format!("does not decode: region {region}: {what}"),
-            ))
-        }
+        Err(RemeshError::Region { region, what }) => fails(region, what.to_string()),
         Err(e) => Err(e.into()),
     }
 }

@@ -1071,3 +1071,43 @@ fn regions_whose_loops_fold_are_charted_along_rays_instead_of_untangled() {
     let out = remesh(&rep, &RemeshOptions::default()).unwrap();
     assert!(out.check.is_clean(), "{:?}", out.check);
 }
+
+/// armadillo at K = 12, written without the encoder's decoder check, has regions whose
+/// loops cross in every attempt (its regions fold over their ellipsoids): the decoder
+/// leaves them out and meshes the rest, with a hole where each would be, and says so.
+#[test]
+fn regions_no_attempt_can_mesh_are_left_out_as_holes() {
+    let Some(mesh) = common::shared_mesh("armadillo") else {
+        return;
+    };
+    let settings = EncodeSettings {
+        segment: SegmentOptions {
+            regions: RegionCount::Fixed(12),
+            ..SegmentOptions::default()
+        },
+        verify: false,
+        ..EncodeSettings::default()
+    };
+    let encoded = encode_mesh(&mesh, &settings, &mut |_| {}).unwrap();
+    let rep = decode(&encoded.bytes, &Limits::default()).unwrap();
+    let out = remesh(&rep, &RemeshOptions::default()).unwrap();
+    let c = out.check;
+    assert!(!out.omitted.is_empty(), "{c:?}");
+    assert_eq!(c.omitted_regions, out.omitted.len());
+    assert!(out.omitted.windows(2).all(|w| w[0] < w[1]));
+    assert!(!c.is_clean() && !c.is_sound());
+    assert!(c.faults().contains("left out"), "{}", c.faults());
+    // The regions left out have no face, every other region has faces, and their holes
+    // are the mesh's border.
+    for r in 0..rep.region_count() as u32 {
+        let faces = out.face_regions.iter().filter(|&&f| f == r).count();
+        assert_eq!(
+            out.omitted.contains(&r),
+            faces == 0,
+            "region {r}: {faces} faces"
+        );
+    }
+    assert!(!c.closed && c.border_loops > 0, "{c:?}");
+    // What is meshed is meshed as well as ever: no flipped or degenerate triangle.
+    assert_eq!(c.flipped + c.degenerate, 0, "{c:?}");
+}

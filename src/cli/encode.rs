@@ -76,7 +76,7 @@ struct EncodeReport {
     /// clean and an earlier one was kept).
     mending_rounds_tried: usize,
     /// The region count the segmentation was raised to when no file at the requested
-    /// count decoded at all (null: not raised).
+    /// count decoded clean (null: not raised).
     raised_regions: Option<usize>,
     /// "clean", "not checked" (--no-verify), or what is still wrong with the decoded file.
     decode_check: String,
@@ -272,7 +272,7 @@ fn print_report(r: &EncodeReport) {
     );
     if let Some(raised) = r.raised_regions {
         eprintln!(
-            "{} regions asked for, but no file with them decoded at all: segmented again into {raised}",
+            "{} regions asked for, but no file with them decoded clean: segmented again into {raised}",
             r.requested_regions
         );
     }

@@ -65,6 +65,10 @@ pub struct MeshCheck {
     /// Whether the representation has arcs on the mesh border (when it has none, the mesh
     /// should be closed).
     pub has_border_arcs: bool,
+    /// Regions left out of the mesh because no attempt could chart or triangulate them
+    /// (their place is a hole); 0 unless every attempt at meshing them all failed (see
+    /// [`assemble`]).
+    pub omitted_regions: usize,
 }
 
 impl MeshCheck {
@@ -91,19 +95,25 @@ impl MeshCheck {
 
     /// [`Self::is_sound`] for a source that is manifold or not (see [`Self::is_clean_from`]).
     pub fn is_sound_from(&self, source_manifold: bool) -> bool {
-        (self.manifold || !source_manifold)
+        self.omitted_regions == 0
+            && (self.manifold || !source_manifold)
             && self.consistently_oriented
             && (self.closed || self.has_border_arcs)
     }
 
     /// What keeps the mesh from being clean, in words: "2 flipped and 0 degenerate
-    /// triangles", then each of ", not manifold", ", not consistently oriented" and ", not
-    /// closed" that applies.
+    /// triangles", then each of ", 1 region left out", ", not manifold", ", not
+    /// consistently oriented" and ", not closed" that applies.
     pub fn faults(&self) -> String {
         format!(
-            "{} flipped and {} degenerate triangles{}{}{}",
+            "{} flipped and {} degenerate triangles{}{}{}{}",
             self.flipped,
             self.degenerate,
+            match self.omitted_regions {
+                0 => String::new(),
+                1 => ", 1 region left out".to_string(),
+                n => format!(", {n} regions left out"),
+            },
             if self.manifold { "" } else { ", not manifold" },
             if self.consistently_oriented {
                 ""
@@ -142,6 +152,7 @@ impl Prepared {
             areas: &self.areas,
             projection: Projection::Closest,
             radial_where_untangled: false,
+            leave_out: false,
         }
     }
 }
@@ -231,7 +242,7 @@ pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshe
             vertices: Some(budget.div_ceil(4usize.pow(levels))),
             ..options.clone()
         };
-        let Ok(coarse) = assemble_unsubdivided(rep, &coarse_options) else {
+        let Ok(coarse) = assemble_unsubdivided(rep, &coarse_options, false) else {
             break;
         };
         if !coarse.check.is_clean() {
@@ -242,24 +253,34 @@ pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshe
             _ => {}
         }
     }
-    assemble_unsubdivided(rep, options)
+    match assemble_unsubdivided(rep, options, false) {
+        // Some region fails in every attempt (a scan's fragment a few quantisation steps
+        // across whose loops enclose nothing on its needle of an ellipsoid, loops that
+        // cross however they are untangled): rather than no mesh at all, the others, with a
+        // hole where it would be, counted in MeshCheck::omitted_regions.
+        Err(RemeshError::Region { .. }) => assemble_unsubdivided(rep, options, true),
+        other => other,
+    }
 }
 
 /// [`assemble`] without subdivision: every vertex placed by the scheme (the attempts below).
+/// With `leave_out`, a region that fails is left out of the attempt instead of ending it.
 fn assemble_unsubdivided(
     rep: &Representation,
     options: &RemeshOptions,
+    leave_out: bool,
 ) -> Result<Remeshed, RemeshError> {
     let prepared = prepare(rep, options)?;
     let settings = prepared.settings;
     let mut plan = prepared.plan(rep, options);
+    plan.leave_out = leave_out;
     // Attempts, in order: refined and pruned arcs; the stored arcs, pruned (refined points
     // off the stored polyline can make loops cross where arcs meet at sharp angles or where
     // the fitted ellipsoids meet far from the stored boundary); the stored arcs as they are
     // (pruning can shortcut a corner across a neighbouring arc); and the same without
-    // untangling. A clean mesh ends the search; otherwise the best mesh is kept (sound
-    // topology first, then the fewest degenerate and flipped triangles, then the earliest),
-    // else the last error.
+    // untangling. A clean mesh ends the search; otherwise the best mesh is kept (the fewest
+    // regions left out, then sound topology, then the fewest degenerate and flipped
+    // triangles, then the earliest), else the last error.
     let stored = RefineSettings {
         max_new_points: 0,
         ..settings
@@ -286,7 +307,7 @@ fn assemble_unsubdivided(
     // except for the regions whose loops cross that way and not along the rays from their
     // ellipsoids' centres; then along the rays for every region (section 5.1's radial map,
     // which suits regions whose boundary lies deep inside a thin ellipsoid better).
-    let mut best: Option<((bool, usize), Remeshed)> = None;
+    let mut best: Option<((usize, bool, usize), Remeshed)> = None;
     let mut last_error = None;
     let attempts = [
         (Projection::Closest, false),
@@ -312,7 +333,7 @@ fn assemble_unsubdivided(
                 if c.is_clean() {
                     return Ok(out);
                 }
-                let score = (!c.is_sound(), c.degenerate + c.flipped);
+                let score = (c.omitted_regions, !c.is_sound(), c.degenerate + c.flipped);
                 if best.as_ref().is_none_or(|(s, _)| score < *s) {
                     best = Some((score, out));
                 }
@@ -343,6 +364,9 @@ struct Plan<'a> {
     /// With untangling, a region whose loops cross in its chart and do not along the rays
     /// from its ellipsoid's centre is charted that way instead of untangled.
     radial_where_untangled: bool,
+    /// A region whose chart or triangulation fails is left out (a hole, counted in
+    /// [`MeshCheck::omitted_regions`]) instead of ending the attempt.
+    leave_out: bool,
 }
 
 impl Plan<'_> {
@@ -355,16 +379,48 @@ impl Plan<'_> {
         settings: &RefineSettings,
         untangle_arcs: bool,
     ) -> Result<Option<Remeshed>, RemeshError> {
-        let (positions, pieces, switched) = self.pieces(settings, untangle_arcs, None)?;
+        let mut faults = Vec::new();
+        let (positions, pieces, switched) = self.pieces(
+            settings,
+            untangle_arcs,
+            self.leave_out.then_some(&mut faults),
+        )?;
         if self.radial_where_untangled && !switched {
             return Ok(None);
         }
+        let mut omitted: Vec<u32> = faults.iter().map(|f| f.region).collect();
         // Meshed on the ellipsoids with the boundary's offsets blended in near the boundary,
         // over bands at least as wide as the target edge length.
-        let pieces: Vec<Piece> = pieces
+        let mut pieces: Vec<Piece> = pieces
             .into_iter()
             .map(|p| p.with_offsets(self.spacing))
             .collect();
+        loop {
+            match self.triangulate_and_join(positions.clone(), &pieces) {
+                Err(RemeshError::Region { region, .. })
+                    if self.leave_out && pieces.iter().any(|p| p.region == region) =>
+                {
+                    pieces.retain(|p| p.region != region);
+                    omitted.push(region);
+                }
+                Err(e) => return Err(e),
+                Ok(mut out) => {
+                    omitted.sort_unstable();
+                    omitted.dedup();
+                    out.check.omitted_regions = omitted.len();
+                    out.omitted = omitted;
+                    return Ok(Some(out));
+                }
+            }
+        }
+    }
+
+    /// Triangulates every piece, sharing the budget among them, and joins them.
+    fn triangulate_and_join(
+        &self,
+        positions: Vec<DVec3>,
+        pieces: &[Piece],
+    ) -> Result<Remeshed, RemeshError> {
         let Plan {
             rep,
             options,
@@ -375,11 +431,11 @@ impl Plan<'_> {
         } = *self;
         let meshes = match options.scheme {
             Scheme::Adaptive => {
-                triangulate_adaptive(&pieces, positions.len(), budget, tolerance, spacing)?
+                triangulate_adaptive(pieces, positions.len(), budget, tolerance, spacing)?
             }
-            Scheme::Parametric => triangulate_by_area(&pieces, positions.len(), budget)?,
+            Scheme::Parametric => triangulate_by_area(pieces, positions.len(), budget)?,
         };
-        join(rep, options.max_vertices, positions, &pieces, meshes).map(Some)
+        join(rep, options.max_vertices, positions, pieces, meshes)
     }
 
     /// The boundary vertex pool and every piece in its chart, settled
@@ -1315,6 +1371,7 @@ pub(super) fn measured(rep: &Representation, mesh: Mesh, face_regions: Vec<u32>)
         normals,
         face_regions,
         check,
+        omitted: Vec::new(),
     }
 }
 
@@ -1402,6 +1459,7 @@ pub fn check_mesh(rep: &Representation, mesh: &Mesh, face_regions: &[u32]) -> Me
         consistently_oriented: t.is_consistently_oriented(),
         border_loops: t.boundary_loops().len(),
         has_border_arcs: rep.arcs.iter().any(|a| a.right == Side::Border),
+        omitted_regions: 0,
     }
 }
 
@@ -1641,6 +1699,7 @@ mod tests {
             consistently_oriented: true,
             border_loops: 0,
             has_border_arcs: false,
+            omitted_regions: 0,
         };
         assert!(clean.is_clean() && clean.is_sound());
         // Open where the representation has border arcs: still sound.
@@ -1686,6 +1745,18 @@ mod tests {
         }
         .is_sound_from(false));
         assert!(clean.is_clean_from(false) && !holed.is_sound_from(false));
+        // Regions left out: never sound, whatever the source.
+        let omitted = MeshCheck {
+            closed: false,
+            border_loops: 2,
+            omitted_regions: 2,
+            ..clean
+        };
+        assert!(!omitted.is_sound() && !omitted.is_sound_from(false));
+        assert_eq!(
+            omitted.faults(),
+            "0 flipped and 0 degenerate triangles, 2 regions left out, not closed"
+        );
     }
 
     #[test]

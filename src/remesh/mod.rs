@@ -165,6 +165,10 @@ pub struct Remeshed {
     pub face_regions: Vec<u32>,
     /// What was measured on the result.
     pub check: assemble::MeshCheck,
+    /// The regions left out because no attempt could mesh them, in increasing order (their
+    /// count is [`assemble::MeshCheck::omitted_regions`]); empty unless every attempt at
+    /// meshing them all failed.
+    pub omitted: Vec<u32>,
 }
 
 /// Why a representation could not be remeshed.
