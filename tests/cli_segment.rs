@@ -342,6 +342,30 @@ fn planes_segment_with_the_l21_metric() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// `--area-weighting` weights each face's error by its area: the same regions' count, a
+/// different metric (blob2's faces differ in area, so the segmentation differs); it chooses
+/// ellipsoids and is refused with `--planes`.
+#[test]
+fn area_weighting_is_an_option_of_the_ellipsoid_metric() {
+    let blob = blob2();
+    let run = |extra: &[&str]| {
+        let mut args = vec!["segment", blob.as_str(), "-k", "4", "--json"];
+        args.extend_from_slice(extra);
+        ellip(&args)
+    };
+    let plain = run(&[]);
+    let weighted = run(&["--area-weighting"]);
+    assert_success(&plain, "plain");
+    assert_success(&weighted, "area weighting");
+    let plain = check_stats(&plain.stdout, 4, "ellipsoid");
+    let weighted = check_stats(&weighted.stdout, 4, "ellipsoid");
+    assert_ne!(plain["regions"], weighted["regions"]);
+    let refused = run(&["--planes", "--area-weighting"]);
+    assert!(!refused.status.success());
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert!(stderr.contains("--area-weighting"), "{stderr}");
+}
+
 #[test]
 fn obj_output_has_no_colours_and_says_so() {
     let dir = temp_dir("obj");

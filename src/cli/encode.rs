@@ -78,6 +78,9 @@ struct EncodeReport {
     /// The region count the segmentation was raised to when no file at the requested
     /// count decoded clean (null: not raised).
     raised_regions: Option<usize>,
+    /// Whether the segmentation was done again with each face's error weighted by its area,
+    /// because no file with the plain weighting decoded clean.
+    area_weighted: bool,
     /// "clean", "not checked" (--no-verify), or what is still wrong with the decoded file.
     decode_check: String,
     arcs: usize,
@@ -211,6 +214,7 @@ pub fn run(args: &EncodeArgs) -> Result<(), CliError> {
         split_rounds: encoded.verification.rounds,
         mending_rounds_tried: encoded.verification.tried,
         raised_regions: encoded.verification.raised_regions,
+        area_weighted: encoded.verification.area_weighted,
         decode_check: match (&encoded.verification.problem, args.no_verify) {
             (_, true) => "not checked".into(),
             (None, false) => "clean".into(),
@@ -270,6 +274,11 @@ fn print_report(r: &EncodeReport) {
         "wrote {}: {} bytes — {} regions, {} arcs, {} boundary points ({} before simplification), {} bits",
         r.output, r.bytes, r.regions, r.arcs, r.points_after_simplification, r.boundary_points, r.bits
     );
+    if r.area_weighted {
+        eprintln!(
+            "no file with the plain metric decoded clean: segmented again with each face's error weighted by its area"
+        );
+    }
     if let Some(raised) = r.raised_regions {
         eprintln!(
             "{} regions asked for, but no file with them decoded clean: segmented again into {raised}",
