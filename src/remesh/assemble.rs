@@ -315,15 +315,41 @@ fn assemble_unsubdivided(
         (Projection::Radial, false),
     ]
     .into_iter()
-    .flat_map(|p| attempts.iter().enumerate().map(move |(k, a)| (p, k, a)));
-    for ((projection, radial_where_untangled), k, (attempt, untangle)) in attempts {
-        if k == 1 && settings.max_new_points == 0 {
-            continue;
+    .flat_map(|p| attempts.iter().enumerate().map(move |(k, a)| (p, k, a)))
+    // Mixed projections only differ where untangling runs.
+    .filter(|&((_, radial), k, (_, untangle))| {
+        (k != 1 || settings.max_new_points != 0) && (!radial || *untangle)
+    });
+    let mut attempts: Vec<_> = attempts.collect();
+    if leave_out {
+        // Meshing every attempt with regions left out would cost a whole mesh each: only
+        // those whose charts fail for the fewest regions are meshed.
+        let mut counts: Vec<(usize, usize)> = Vec::new();
+        for (i, &((projection, radial_where_untangled), _, (attempt, untangle))) in
+            attempts.iter().enumerate()
+        {
+            plan.projection = projection;
+            plan.radial_where_untangled = radial_where_untangled;
+            let mut faults = Vec::new();
+            let Ok((_, pieces, switched)) = plan.pieces(attempt, *untangle, Some(&mut faults))
+            else {
+                continue;
+            };
+            if radial_where_untangled && !switched || pieces.is_empty() {
+                continue;
+            }
+            faults.sort_by_key(|f| f.region);
+            faults.dedup_by_key(|f| f.region);
+            counts.push((faults.len(), i));
         }
-        // Mixed projections only differ where untangling runs.
-        if radial_where_untangled && !untangle {
-            continue;
-        }
+        let fewest = counts.iter().map(|&(n, _)| n).min();
+        attempts = counts
+            .iter()
+            .filter(|&&(n, _)| Some(n) == fewest)
+            .map(|&(_, i)| attempts[i])
+            .collect();
+    }
+    for ((projection, radial_where_untangled), _, (attempt, untangle)) in attempts {
         plan.projection = projection;
         plan.radial_where_untangled = radial_where_untangled;
         match plan.mesh(attempt, *untangle) {
