@@ -1110,4 +1110,39 @@ fn regions_no_attempt_can_mesh_are_left_out_as_holes() {
     assert!(!c.closed && c.border_loops > 0, "{c:?}");
     // What is meshed is meshed as well as ever: no flipped or degenerate triangle.
     assert_eq!(c.flipped + c.degenerate, 0, "{c:?}");
+    // Asked not to leave regions out, the decoder says which region fails.
+    let strict = RemeshOptions {
+        leave_out: false,
+        ..RemeshOptions::default()
+    };
+    assert!(matches!(
+        remesh(&rep, &strict),
+        Err(ellip::remesh::RemeshError::Region { .. })
+    ));
+    // The same from the command line: a warning naming them, and --no-holes to fail.
+    let expected: Vec<u64> = out.omitted.iter().map(|&r| u64::from(r)).collect();
+    let dir = scratch("left-out");
+    let input = dir.join("armadillo12.ellip");
+    std::fs::write(&input, &encoded.bytes).unwrap();
+    let output = dir.join("armadillo12.ply");
+    let args = [
+        "decode",
+        input.to_str().unwrap(),
+        "-o",
+        output.to_str().unwrap(),
+    ];
+    let out = ellip(&[&args[..], &["--json"]].concat());
+    assert!(out.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let listed: Vec<u64> = v["omitted_regions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r.as_u64().unwrap())
+        .collect();
+    assert_eq!(listed, expected);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("left out"));
+    let refused = ellip(&[&args[..], &["--no-holes"]].concat());
+    assert!(!refused.status.success());
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("region"));
 }

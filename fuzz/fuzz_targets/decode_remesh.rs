@@ -51,8 +51,10 @@ fn check(data: &[u8]) {
         scheme,
         max_vertices: 100_000,
         subdivision: true,
+        leave_out: true,
     };
     if let Ok(out) = remesh(&rep, &options) {
+        assert_eq!(out.omitted.len(), out.check.omitted_regions);
         assert_eq!(out.normals.len(), out.mesh.vertex_count());
         assert_eq!(out.face_regions.len(), out.mesh.face_count());
         assert!(out.normals.iter().all(|n| n.is_finite()));

@@ -59,6 +59,10 @@ pub struct RemeshArgs {
     /// it and splitting every triangle into four, several times faster for the same error.
     #[arg(long)]
     no_subdivision: bool,
+    /// Fail when a region cannot be meshed, instead of leaving it out (a hole) with a
+    /// warning.
+    #[arg(long)]
+    no_holes: bool,
     /// Colour each region (.glb, .gltf, .ply; not .obj).
     #[arg(long)]
     pub colors: bool,
@@ -77,6 +81,7 @@ impl RemeshArgs {
             || self.scheme != SchemeArg::Adaptive
             || self.colors
             || self.no_subdivision
+            || self.no_holes
     }
 
     /// The library's options (checked; `tolerance` as given on the command line).
@@ -110,6 +115,7 @@ impl RemeshArgs {
                 SchemeArg::Parametric => Scheme::Parametric,
             },
             subdivision: !self.no_subdivision,
+            leave_out: !self.no_holes,
             ..RemeshOptions::default()
         })
     }
@@ -130,6 +136,9 @@ pub struct DecodeReport {
     border_loops: usize,
     degenerate_triangles: usize,
     flipped_triangles: usize,
+    /// The regions left out because they could not be meshed (holes in the mesh), in
+    /// increasing order.
+    omitted_regions: Vec<u32>,
     colored: bool,
     seconds: f64,
 }
@@ -214,6 +223,13 @@ pub fn remesh_and_write(
     if !quiet && !check.is_clean() {
         eprintln!("warning: the mesh is not clean: {}", check.faults());
     }
+    if !quiet && !remeshed.omitted.is_empty() {
+        let listed: Vec<String> = remeshed.omitted.iter().map(u32::to_string).collect();
+        eprintln!(
+            "warning: no attempt could mesh region(s) {}: left out, a hole each (--no-holes fails instead)",
+            listed.join(", ")
+        );
+    }
     Ok(DecodeReport {
         file: shown(input),
         output: shown(output),
@@ -229,6 +245,7 @@ pub fn remesh_and_write(
         border_loops: check.border_loops,
         degenerate_triangles: check.degenerate,
         flipped_triangles: check.flipped,
+        omitted_regions: remeshed.omitted.clone(),
         colored,
         seconds,
     })

@@ -258,7 +258,9 @@ pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshe
         // across whose loops enclose nothing on its needle of an ellipsoid, loops that
         // cross however they are untangled): rather than no mesh at all, the others, with a
         // hole where it would be, counted in MeshCheck::omitted_regions.
-        Err(RemeshError::Region { .. }) => assemble_unsubdivided(rep, options, true),
+        Err(RemeshError::Region { .. }) if options.leave_out => {
+            assemble_unsubdivided(rep, options, true)
+        }
         other => other,
     }
 }

@@ -71,6 +71,10 @@ pub struct RemeshOptions {
     /// true. Off, every vertex is placed by iterative vertex addition (several times slower
     /// at hundreds of thousands of vertices).
     pub subdivision: bool,
+    /// Whether a region that no meshing attempt can chart or triangulate is left out (a
+    /// hole, counted in [`assemble::MeshCheck::omitted_regions`]) so that the rest decodes;
+    /// default true. Off, such a file fails with [`RemeshError::Region`].
+    pub leave_out: bool,
 }
 
 /// Fewest vertices the adaptive mesh that [`subdivide`] refines is made with.
@@ -87,6 +91,7 @@ impl Default for RemeshOptions {
             scheme: Scheme::Adaptive,
             max_vertices: MAX_VERTICES,
             subdivision: true,
+            leave_out: true,
         }
     }
 }
