@@ -202,8 +202,8 @@ pub fn encode_mesh(
 
 /// Most rounds of mending for [`encode_mesh`]'s segmentation weighted by area, tried when
 /// no file at the requested count decodes clean: half of [`MAX_SPLIT_ROUNDS`], so that on a
-/// mesh it cannot help (armadillo at K = 12, 24 rounds in 74 s, none clean) it costs half
-/// as much; CGAL's camel and couplings were clean after 3 and 9 rounds.
+/// mesh it cannot help (armadillo at K = 12, none of 24 rounds clean) it costs half as much;
+/// CGAL's camel and couplings were clean after 3 and 9 rounds.
 pub const MAX_REWEIGHTED_ROUNDS: usize = MAX_SPLIT_ROUNDS / 2;
 
 /// How many times [`encode_mesh`] raises the region count by half when no file at the
