@@ -5,7 +5,8 @@
 //! ellipsoids (Simari & Singh 2005, section 4.1) → [`Representation::from_boundary`] →
 //! [`Representation::simplify_arcs`] (Douglas–Peucker, the paper's future-work note) →
 //! [`format::encode`] (quantised, compressed, checksummed; `spec/ELLIP.md`) → the decoder
-//! check: the file is remeshed as a reader would, and each region that does not mesh
+//! check: the file is remeshed as a reader would (but without leaving out the regions it
+//! cannot mesh, [`crate::remesh::RemeshOptions::leave_out`]), and each region that does not mesh
 //! cleanly is mended and the file written again ([`EncodeSettings::verify`]): a region the
 //! decoder cannot chart gets its boundaries stored at the mesh's own points, then unsimplified;
 //! a small region is dissolved into its neighbours ([`dissolve_regions`]); any other is
@@ -38,7 +39,9 @@ pub struct EncodeSettings {
     /// [`AUTO_BITS`] that gives the smallest file within the boundary tolerance
     /// ([`format::DEFAULT_BITS`] when the tolerance is 0).
     pub bits: Option<u8>,
-    /// Decode the file as a reader would (default budget and limits) and, where a region
+    /// Decode the file as a reader would (default budget and limits, but no region left
+    /// out: a file that decodes only with holes counts as one that does not decode) and,
+    /// where a region
     /// does not mesh cleanly, mend it and write again, up to [`MAX_SPLIT_ROUNDS`] rounds
     /// (default true). A region whose boundary the decoder cannot chart (it folds, or two of
     /// its loops touch) first has its boundaries stored at the mesh's own points rather than
@@ -139,13 +142,13 @@ pub fn encode_mesh(
     // over the surface, where the paper's plain sum over vertices lets densely tessellated
     // parts pull the fits: CGAL's camel and mannequin, whose fingers and faces hold tiny
     // triangles with mean curvatures in the thousands, were fitted with needles a
-    // hundred-thousandth of the diagonal thick). Then the count is raised by half (beyond
-    // one region per further component), a few times, with the weighting asked for (raised
-    // with area weighting, armadillo needed 27 regions instead of 22). The best file is
-    // kept, the first clean one ending the search. armadillo at K = 12,
-    // whose regions fold over their ellipsoids however they are split, does not decode at
-    // all and decodes clean at 18; the npm bunny at K = 12, whose ears' loops fold in their
-    // charts (2 flipped triangles), decodes clean weighted by area (13 regions).
+    // ten-thousandth of the diagonal thick; the npm bunny at K = 12, whose ears' loops fold
+    // in their charts, 2 flipped triangles, decodes clean so at 13 regions). Then the count
+    // is raised by half (beyond one region per further component), a few times, with the
+    // weighting asked for (raised with area weighting, armadillo needed 27 regions instead
+    // of 22): armadillo at K = 12, whose regions fold over their ellipsoids however they are
+    // split, does not decode whole and decodes clean at 18. The best file is kept, the first
+    // clean one ending the search.
     let mut best = (score, encoded);
     if !settings.segment.area_weighting {
         let weighted = EncodeSettings {
@@ -213,7 +216,7 @@ pub const MAX_REGION_RAISES: usize = 2;
 /// The rank of a [`Score`] whose file decodes clean.
 const CLEAN: u8 = 0;
 
-/// The rank of a [`Score`] whose file does not decode at all.
+/// The rank of a [`Score`] whose file does not decode whole (with every region).
 const DOES_NOT_DECODE: u8 = 2;
 
 /// [`encode_mesh`] at the requested region count: the file, mended when checked (at most
@@ -457,7 +460,9 @@ struct Faults {
 }
 
 /// Decodes `bytes` as any reader would ([`format::Limits::default`],
-/// [`crate::remesh::RemeshOptions::default`]) and says whether the mesh is clean as far as
+/// [`crate::remesh::RemeshOptions::default`], but with no region left out: a file that
+/// decodes only with holes counts as one that does not decode) and says whether the mesh
+/// is clean as far as
 /// the source allows ([`crate::remesh::assemble::MeshCheck::is_clean_from`]) and, if not,
 /// which regions to blame.
 fn verify(bytes: &[u8], source_manifold: bool) -> Result<Verdict, EncodeMeshError> {
@@ -469,25 +474,6 @@ fn verify(bytes: &[u8], source_manifold: bool) -> Result<Verdict, EncodeMeshErro
     let options = RemeshOptions {
         leave_out: false,
         ..RemeshOptions::default()
-    };
-    // A file that does not decode (whole). The decoder reports the
-    // region its last attempt stopped at, which is often not where its first (and best)
-    // attempt failed. Blamed instead: the first region that fails in the first attempt, cut
-    // between the two sheets of its fold when the chart shows one. One region a round:
-    // splitting every failing region at once was measured worse (dino at K = 12 took 26
-    // regions instead of 15).
-    let fails = |region: u32, what: String| -> Result<Verdict, EncodeMeshError> {
-        let split = region_faults(&representation, &options)?
-            .first()
-            .map(|f| Split {
-                region: f.region,
-                cut: f.crossing.and_then(cut_between),
-            })
-            .unwrap_or(Split { region, cut: None });
-        Ok(Verdict::Fails(
-            vec![split],
-            format!("does not decode: region {region}: {what}"),
-        ))
     };
     match remesh(&representation, &options) {
         Ok(out) if out.check.is_clean_from(source_manifold) => Ok(Verdict::Clean),
@@ -504,7 +490,24 @@ fn verify(bytes: &[u8], source_manifold: bool) -> Result<Verdict, EncodeMeshErro
             };
             Ok(Verdict::Dirty(faults, blamed, problem))
         }
-        Err(RemeshError::Region { region, what }) => fails(region, what.to_string()),
+        // The decoder reports the region its last attempt stopped at, which is often not
+        // where its first (and best) attempt failed. Blamed instead: the first region that
+        // fails in the first attempt, cut between the two sheets of its fold when the chart
+        // shows one. One region a round: splitting every failing region at once was measured
+        // worse (dino at K = 12 took 26 regions instead of 15).
+        Err(RemeshError::Region { region, what }) => {
+            let split = region_faults(&representation, &options)?
+                .first()
+                .map(|f| Split {
+                    region: f.region,
+                    cut: f.crossing.and_then(cut_between),
+                })
+                .unwrap_or(Split { region, cut: None });
+            Ok(Verdict::Fails(
+                vec![split],
+                format!("does not decode: region {region}: {what}"),
+            ))
+        }
         Err(e) => Err(e.into()),
     }
 }

@@ -302,6 +302,8 @@ fn a_file_that_decodes_is_kept_over_one_that_does_not() {
     assert_eq!(out.check.omitted_regions, 0);
     let v = &encoded.verification;
     assert!(v.rounds >= 1);
+    // The file kept comes from mending at the requested count, not from a fallback.
+    assert_eq!((v.raised_regions, v.area_weighted), (None, false), "{v:?}");
     // Whatever is left is said.
     assert_eq!(v.problem.is_none(), out.check.is_clean(), "{:?}", v.problem);
     assert!(out.check.manifold, "{:?}", out.check);
@@ -313,7 +315,7 @@ fn a_file_that_decodes_is_kept_over_one_that_does_not() {
 /// of mending left it undecodable, and weighting by area does not help its evenly
 /// tessellated surface); at 18 it decodes clean.
 #[test]
-fn when_no_file_at_the_requested_count_decodes_the_count_is_raised() {
+fn when_no_file_at_the_requested_count_decodes_clean_the_count_is_raised() {
     let Some(mesh) = common::shared_mesh("armadillo") else {
         return;
     };

@@ -54,7 +54,11 @@ fn check(data: &[u8]) {
         leave_out: true,
     };
     if let Ok(out) = remesh(&rep, &options) {
+        // Regions left out: counted, each once, in order, real regions, and without faces.
         assert_eq!(out.omitted.len(), out.check.omitted_regions);
+        assert!(out.omitted.windows(2).all(|w| w[0] < w[1]));
+        assert!(out.omitted.iter().all(|&r| (r as usize) < rep.region_count()));
+        assert!(out.face_regions.iter().all(|r| !out.omitted.contains(r)));
         assert_eq!(out.normals.len(), out.mesh.vertex_count());
         assert_eq!(out.face_regions.len(), out.mesh.face_count());
         assert!(out.normals.iter().all(|n| n.is_finite()));

@@ -226,7 +226,7 @@ pub fn remesh_and_write(
     if !quiet && !remeshed.omitted.is_empty() {
         let listed: Vec<String> = remeshed.omitted.iter().map(u32::to_string).collect();
         eprintln!(
-            "warning: no attempt could mesh region(s) {}: left out, a hole each (--no-holes fails instead)",
+            "warning: region(s) {} could not be meshed and were left out, leaving holes (--no-holes fails instead)",
             listed.join(", ")
         );
     }

@@ -65,22 +65,23 @@ pub struct MeshCheck {
     /// Whether the representation has arcs on the mesh border (when it has none, the mesh
     /// should be closed).
     pub has_border_arcs: bool,
-    /// Regions left out of the mesh because no attempt could chart or triangulate them
-    /// (their place is a hole); 0 unless every attempt at meshing them all failed (see
-    /// [`assemble`]).
+    /// Regions left out of the mesh because they could not be charted or triangulated in
+    /// the attempt kept (their place is a hole); 0 unless every attempt at meshing them all
+    /// failed (see [`assemble`]).
     pub omitted_regions: usize,
 }
 
 impl MeshCheck {
-    /// Whether the mesh has every property it should: no degenerate or flipped triangle,
-    /// manifold and consistently oriented, and closed unless the representation has border
-    /// arcs.
+    /// Whether the mesh has every property it should: no region left out, no degenerate or
+    /// flipped triangle, manifold and consistently oriented, and closed unless the
+    /// representation has border arcs.
     pub fn is_clean(&self) -> bool {
         self.is_clean_from(true)
     }
 
-    /// Whether the mesh's topology is as it should be, whatever its triangles' shapes:
-    /// manifold, consistently oriented, and closed unless the representation has border arcs.
+    /// Whether the mesh's topology is as it should be, whatever its triangles' shapes: no
+    /// region left out, manifold, consistently oriented, and closed unless the
+    /// representation has border arcs.
     pub fn is_sound(&self) -> bool {
         self.is_sound_from(true)
     }
@@ -232,7 +233,10 @@ pub fn region_faults(
 /// budget ([`RemeshOptions::subdivision_levels`]) is met by meshing at a fraction of it and
 /// subdividing ([`super::subdivide`]), which keeps a clean coarse mesh clean; when the
 /// coarse mesh is not clean (the meshing of some regions depends on the budget), with one
-/// level fewer, and so on; failing all, by meshing at the full budget.
+/// level fewer, and so on; failing all, by meshing at the full budget. When some region
+/// fails in every attempt, with [`RemeshOptions::leave_out`] the attempts are made again
+/// leaving out each region that fails ([`MeshCheck::omitted_regions`]); if that fails too,
+/// the first error stands.
 pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshed, RemeshError> {
     rep.validate()?;
     options.validate()?;
@@ -258,8 +262,8 @@ pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshe
         // across whose loops enclose nothing on its needle of an ellipsoid, loops that
         // cross however they are untangled): rather than no mesh at all, the others, with a
         // hole where it would be, counted in MeshCheck::omitted_regions.
-        Err(RemeshError::Region { .. }) if options.leave_out => {
-            assemble_unsubdivided(rep, options, true)
+        Err(e @ RemeshError::Region { .. }) if options.leave_out => {
+            assemble_unsubdivided(rep, options, true).map_err(|_| e)
         }
         other => other,
     }
@@ -418,12 +422,20 @@ impl Plan<'_> {
         }
         let mut omitted: Vec<u32> = faults.iter().map(|f| f.region).collect();
         // Meshed on the ellipsoids with the boundary's offsets blended in near the boundary,
-        // over bands at least as wide as the target edge length.
+        // over bands at least as wide as the target edge length; a region left out loses
+        // all its pieces (both halves of a whole ellipsoid).
         let mut pieces: Vec<Piece> = pieces
             .into_iter()
+            .filter(|p| !omitted.contains(&p.region))
             .map(|p| p.with_offsets(self.spacing))
             .collect();
         loop {
+            if pieces.is_empty() && !omitted.is_empty() {
+                return Err(RemeshError::Region {
+                    region: omitted[0],
+                    what: "no region could be meshed",
+                });
+            }
             match self.triangulate_and_join(positions.clone(), &pieces) {
                 Err(RemeshError::Region { region, .. })
                     if self.leave_out && pieces.iter().any(|p| p.region == region) =>
@@ -510,7 +522,20 @@ impl Plan<'_> {
             let area = areas.get(r).copied().unwrap_or(0.0);
             if cycles.is_empty() {
                 let equator_budget = options.max_vertices.saturating_sub(pool.positions.len());
-                let halves = split_whole(region, ellipsoid, spacing, equator_budget, &mut pool)?;
+                let halves =
+                    match split_whole(region, ellipsoid, spacing, equator_budget, &mut pool) {
+                        Ok(halves) => halves,
+                        Err(RemeshError::Region { region, .. }) if faults.is_some() => {
+                            if let Some(f) = faults.as_deref_mut() {
+                                f.push(RegionFault {
+                                    region,
+                                    crossing: None,
+                                });
+                            }
+                            continue;
+                        }
+                        Err(e) => return Err(e),
+                    };
                 pieces.extend(halves.map(|mut p| {
                     p.area = area / 2.0;
                     p

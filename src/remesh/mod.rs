@@ -71,9 +71,10 @@ pub struct RemeshOptions {
     /// true. Off, every vertex is placed by iterative vertex addition (several times slower
     /// at hundreds of thousands of vertices).
     pub subdivision: bool,
-    /// Whether a region that no meshing attempt can chart or triangulate is left out (a
-    /// hole, counted in [`assemble::MeshCheck::omitted_regions`]) so that the rest decodes;
-    /// default true. Off, such a file fails with [`RemeshError::Region`].
+    /// When some region fails in every meshing attempt: whether the attempts are made again
+    /// leaving out each region that fails (a hole, counted in
+    /// [`assemble::MeshCheck::omitted_regions`]) so that the rest decodes; default true.
+    /// Off, such a file fails with [`RemeshError::Region`].
     pub leave_out: bool,
 }
 
@@ -170,9 +171,9 @@ pub struct Remeshed {
     pub face_regions: Vec<u32>,
     /// What was measured on the result.
     pub check: assemble::MeshCheck,
-    /// The regions left out because no attempt could mesh them, in increasing order (their
-    /// count is [`assemble::MeshCheck::omitted_regions`]); empty unless every attempt at
-    /// meshing them all failed.
+    /// The regions left out because they could not be meshed in the attempt kept, in
+    /// increasing order (their count is [`assemble::MeshCheck::omitted_regions`]); empty
+    /// unless every attempt at meshing them all failed.
     pub omitted: Vec<u32>,
 }
 
