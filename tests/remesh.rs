@@ -40,11 +40,22 @@ fn blob_ellipsoids(name: &str) -> usize {
 
 /// Encodes `mesh` at `k` regions and decodes the bytes.
 fn encode(mesh: &Mesh, k: usize) -> (Vec<u8>, Representation) {
+    encode_with(mesh, k, true)
+}
+
+/// [`encode`] without the encoder's decoder check: the segmentation as it is, whatever the
+/// decoder makes of it.
+fn encode_unchecked(mesh: &Mesh, k: usize) -> (Vec<u8>, Representation) {
+    encode_with(mesh, k, false)
+}
+
+fn encode_with(mesh: &Mesh, k: usize, verify: bool) -> (Vec<u8>, Representation) {
     let settings = EncodeSettings {
         segment: SegmentOptions {
             regions: RegionCount::Fixed(k),
             ..SegmentOptions::default()
         },
+        verify,
         ..EncodeSettings::default()
     };
     let encoded = encode_mesh(mesh, &settings, &mut |_| {}).unwrap();
@@ -1058,16 +1069,7 @@ fn regions_whose_loops_fold_are_charted_along_rays_instead_of_untangled() {
     let Some(mesh) = common::shared_mesh("teddy") else {
         return;
     };
-    let settings = EncodeSettings {
-        segment: SegmentOptions {
-            regions: RegionCount::Fixed(18),
-            ..SegmentOptions::default()
-        },
-        verify: false,
-        ..EncodeSettings::default()
-    };
-    let encoded = encode_mesh(&mesh, &settings, &mut |_| {}).unwrap();
-    let rep = decode(&encoded.bytes, &Limits::default()).unwrap();
+    let (_, rep) = encode_unchecked(&mesh, 18);
     let out = remesh(&rep, &RemeshOptions::default()).unwrap();
     assert!(out.check.is_clean(), "{:?}", out.check);
 }
@@ -1080,16 +1082,7 @@ fn regions_no_attempt_can_mesh_are_left_out_as_holes() {
     let Some(mesh) = common::shared_mesh("armadillo") else {
         return;
     };
-    let settings = EncodeSettings {
-        segment: SegmentOptions {
-            regions: RegionCount::Fixed(12),
-            ..SegmentOptions::default()
-        },
-        verify: false,
-        ..EncodeSettings::default()
-    };
-    let encoded = encode_mesh(&mesh, &settings, &mut |_| {}).unwrap();
-    let rep = decode(&encoded.bytes, &Limits::default()).unwrap();
+    let (bytes, rep) = encode_unchecked(&mesh, 12);
     let out = remesh(&rep, &RemeshOptions::default()).unwrap();
     let c = out.check;
     assert!(!out.omitted.is_empty(), "{c:?}");
@@ -1123,7 +1116,7 @@ fn regions_no_attempt_can_mesh_are_left_out_as_holes() {
     let expected: Vec<u64> = out.omitted.iter().map(|&r| u64::from(r)).collect();
     let dir = scratch("left-out");
     let input = dir.join("armadillo12.ellip");
-    std::fs::write(&input, &encoded.bytes).unwrap();
+    std::fs::write(&input, &bytes).unwrap();
     let output = dir.join("armadillo12.ply");
     let args = [
         "decode",

@@ -219,13 +219,9 @@ pub fn region_faults(
     options: &RemeshOptions,
 ) -> Result<Vec<RegionFault>, RemeshError> {
     let prepared = prepare(rep, options)?;
-    let mut faults = Vec::new();
-    prepared
+    let (faults, _) = prepared
         .plan(rep, options)
-        .pieces(&prepared.settings, true, Some(&mut faults))?;
-    // Stable: a whole ellipsoid's two halves keep their order.
-    faults.sort_by_key(|f| f.region);
-    faults.dedup_by_key(|f| f.region);
+        .faults(&prepared.settings, true)?;
     Ok(faults)
 }
 
@@ -336,17 +332,9 @@ fn assemble_unsubdivided(
         {
             plan.projection = projection;
             plan.radial_where_untangled = radial_where_untangled;
-            let mut faults = Vec::new();
-            let Ok((_, pieces, switched)) = plan.pieces(attempt, *untangle, Some(&mut faults))
-            else {
-                continue;
-            };
-            if radial_where_untangled && !switched || pieces.is_empty() {
-                continue;
+            if let Ok((faults, true)) = plan.faults(attempt, *untangle) {
+                counts.push((faults.len(), i));
             }
-            faults.sort_by_key(|f| f.region);
-            faults.dedup_by_key(|f| f.region);
-            counts.push((faults.len(), i));
         }
         let fewest = counts.iter().map(|&(n, _)| n).min();
         attempts = counts
@@ -478,6 +466,23 @@ impl Plan<'_> {
         join(rep, options.max_vertices, positions, pieces, meshes)
     }
 
+    /// The regions whose chart or boundary triangulation fails in this attempt, in
+    /// increasing order, one fault per region; and whether the attempt has anything to mesh
+    /// (some piece, and not a repeat: see [`Plan::mesh`]).
+    fn faults(
+        &self,
+        settings: &RefineSettings,
+        untangle_arcs: bool,
+    ) -> Result<(Vec<RegionFault>, bool), RemeshError> {
+        let mut faults = Vec::new();
+        let (_, pieces, switched) = self.pieces(settings, untangle_arcs, Some(&mut faults))?;
+        // Stable: a whole ellipsoid's two halves keep their order.
+        faults.sort_by_key(|f| f.region);
+        faults.dedup_by_key(|f| f.region);
+        let meshable = !pieces.is_empty() && (switched || !self.radial_where_untangled);
+        Ok((faults, meshable))
+    }
+
     /// The boundary vertex pool and every piece in its chart, settled
     /// ([`settle_charts`]), and whether untangling charted a region radially instead
     /// ([`Plan::radial_where_untangled`]). With `faults`, a region whose chart or boundary
@@ -522,20 +527,10 @@ impl Plan<'_> {
             let area = areas.get(r).copied().unwrap_or(0.0);
             if cycles.is_empty() {
                 let equator_budget = options.max_vertices.saturating_sub(pool.positions.len());
-                let halves =
-                    match split_whole(region, ellipsoid, spacing, equator_budget, &mut pool) {
-                        Ok(halves) => halves,
-                        Err(RemeshError::Region { region, .. }) if faults.is_some() => {
-                            if let Some(f) = faults.as_deref_mut() {
-                                f.push(RegionFault {
-                                    region,
-                                    crossing: None,
-                                });
-                            }
-                            continue;
-                        }
-                        Err(e) => return Err(e),
-                    };
+                let halves = split_whole(region, ellipsoid, spacing, equator_budget, &mut pool);
+                let Some(halves) = noted(halves, faults.as_deref_mut())? else {
+                    continue;
+                };
                 pieces.extend(halves.map(|mut p| {
                     p.area = area / 2.0;
                     p
@@ -586,25 +581,16 @@ impl Plan<'_> {
                 .filter(|(l, _)| *l == loop_points)
                 .map(|(_, chart)| Ok(chart));
             let projection = projections.get(r).copied().unwrap_or(self.projection);
-            let chart = match known.unwrap_or_else(|| {
+            let chart = known.unwrap_or_else(|| {
                 RegionChart::with_projection(
                     region,
                     &stand_in,
                     &loop_points,
                     projection_onto(&stand_in, ellipsoid, projection),
                 )
-            }) {
-                Ok(chart) => chart,
-                Err(RemeshError::Region { region, .. }) if faults.is_some() => {
-                    if let Some(f) = faults.as_deref_mut() {
-                        f.push(RegionFault {
-                            region,
-                            crossing: None,
-                        });
-                    }
-                    continue;
-                }
-                Err(e) => return Err(e),
+            });
+            let Some(chart) = noted(chart, faults.as_deref_mut())? else {
+                continue;
             };
             // Meshed on a stand-in, the points go back onto the region's ellipsoid the way
             // the boundary came to the stand-in.
@@ -625,6 +611,25 @@ impl Plan<'_> {
 
         settle_charts(rep, &mut pieces, spacing / 4.0, faults)?;
         Ok((pool.positions, pieces, switched))
+    }
+}
+
+/// `result`'s value; with `faults`, a region error is noted there instead (`None`: the
+/// region is left out) rather than returned.
+fn noted<T>(
+    result: Result<T, RemeshError>,
+    faults: Option<&mut Vec<RegionFault>>,
+) -> Result<Option<T>, RemeshError> {
+    match (result, faults) {
+        (Ok(value), _) => Ok(Some(value)),
+        (Err(RemeshError::Region { region, .. }), Some(f)) => {
+            f.push(RegionFault {
+                region,
+                crossing: None,
+            });
+            Ok(None)
+        }
+        (Err(e), _) => Err(e),
     }
 }
 
