@@ -189,7 +189,11 @@ impl Ellipsoid {
         if eval(near_lo).0 <= 0.0 {
             return self.project_radially(p);
         }
-        let mut t = hi;
+        // Newton from t = 0, the root for a point on the surface: the points this is asked
+        // for lie on or near it (boundary points, a mesh's vertices), where a few steps
+        // converge. Newton from either side of the root of a convex decreasing function
+        // approaches it monotonically.
+        let mut t = if lo < 0.0 && hi > 0.0 { 0.0 } else { hi };
         for _ in 0..MAX_FOOT_ITERATIONS {
             let (f, df) = eval(t);
             if f == 0.0 {
