@@ -202,7 +202,12 @@ fn rate_control_meets_an_error_target_and_a_byte_budget() {
         // No probe that fitted had a lower error.
         for p in &rc.probes {
             if p.bytes <= budget {
-                assert!(p.rms * diagonal >= rc.measured.rms, "{p:?}");
+                // Probes store the error as a fraction of the diagonal: equal up to rounding.
+                assert!(
+                    p.rms * diagonal >= rc.measured.rms * (1.0 - 1e-12),
+                    "{p:?} kept {} bytes",
+                    rc.bytes.len()
+                );
             }
         }
     }
@@ -304,9 +309,18 @@ fn a_file_that_decodes_is_kept_over_one_that_does_not() {
     assert!(v.rounds >= 1);
     // The file kept comes from mending at the requested count, not from a fallback.
     assert_eq!((v.raised_regions, v.area_weighted), (None, false), "{v:?}");
-    // Whatever is left is said.
-    assert_eq!(v.problem.is_none(), out.check.is_clean(), "{:?}", v.problem);
-    assert!(out.check.manifold, "{:?}", out.check);
+    // Whatever is left is said, judged as the encoder judges: dino has two pinched edges,
+    // and its files need not be more manifold than it.
+    let source_manifold = mesh.topology().is_manifold();
+    assert!(!source_manifold);
+    assert_eq!(
+        v.problem.is_none(),
+        out.check.is_clean_from(source_manifold),
+        "{:?} {:?}",
+        v.problem,
+        out.check
+    );
+    assert!(out.check.is_sound_from(source_manifold), "{:?}", out.check);
 }
 
 /// When no mending makes the file at the requested region count decode clean, the encoder

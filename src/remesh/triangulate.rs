@@ -33,9 +33,10 @@ use super::chart::RegionChart;
 use super::surface::RegionSurface;
 use super::RemeshError;
 use glam::{DVec2, DVec3};
-use spade::handles::{FixedFaceHandle, FixedVertexHandle, InnerTag};
+use spade::handles::{FixedFaceHandle, FixedVertexHandle, InnerTag, VertexHandle};
 use spade::{
-    validate_coordinate, ConstrainedDelaunayTriangulation, HasPosition, Point2, Triangulation,
+    validate_coordinate, CdtEdge, ConstrainedDelaunayTriangulation, HasPosition, Point2,
+    Triangulation,
 };
 use std::cmp::Ordering;
 use std::collections::{BinaryHeap, HashMap, VecDeque};
@@ -371,6 +372,21 @@ impl RegionCdt {
         Some(handle)
     }
 
+    /// Whether the face with these corners (counter-clockwise in the plane) is turned
+    /// against the region's ellipsoid: its normal, oriented as [`RegionCdt::finish`] will
+    /// orient it, against the ellipsoid's signed normal at its centroid (the test
+    /// [`super::assemble::check_mesh`] applies to the assembled mesh).
+    fn is_turned(&self, [a, b, c]: [DVec3; 3]) -> bool {
+        let facing = (b - a)
+            .cross(c - a)
+            .dot(self.surface.ellipsoid().normal((a + b + c) / 3.0));
+        if self.flip {
+            facing > 0.0
+        } else {
+            facing < 0.0
+        }
+    }
+
     /// The inside faces as triangles, oriented with the ellipsoid's signed normal.
     fn finish(self) -> RegionMesh {
         let triangles = self
@@ -559,6 +575,13 @@ impl AdaptiveTriangulation {
                 .map(|p| DVec2::new(p.x, p.y));
             let plane = (qa + qb + qc) / 3.0;
             let point = self.inner.surface.point_and_height(plane);
+            // A face that is not turned is not split into one that is and cannot be split in
+            // turn (a turned face is split whatever it gives: nothing is lost).
+            if candidate.error.is_finite()
+                && self.split_strands_a_turned_face(&candidate, plane, point)
+            {
+                continue;
+            }
             if self
                 .inner
                 .insert_interior(plane, point, candidate.corners[0])
@@ -622,6 +645,78 @@ impl AdaptiveTriangulation {
         }
     }
 
+    /// Whether splitting the candidate's face at `plane` (its plane centroid; `point` and its
+    /// height, the new vertex) would give a face turned against its ellipsoid
+    /// ([`RegionCdt::is_turned`]) that is not to be mended by splitting it in turn.
+    ///
+    /// On a thin ellipsoid the chart is far from isotropic (a region on radii 250 × 0.005 ×
+    /// 0.007 is stretched fifty thousand times more along one axis than the others), so near
+    /// the boundary a point inside a face in the plane can land beyond the face's edge on the
+    /// surface, where the boundary's offsets have pulled the edge in: the new face across
+    /// that edge is turned over. A turned face is split first ([`Self::push_face`]), but at
+    /// the scale of the target edge length its splits are turned again until the boundary
+    /// clearance or the spacing stops them, and a turned face is left (horse at K = 24: 198
+    /// flipped triangles at 12 500 vertices). So a face no longer than
+    /// [`STRICT_FACE_SPACINGS`] minimum spacings is not split into a turned face at all; a
+    /// larger one, which spans enough of a curved surface that its first splits may be
+    /// turned and mended by the next (the blobs' first splits), only not into a turned face
+    /// that cannot be split ([`Self::split_point`]). A refused face stays as it is.
+    fn split_strands_a_turned_face(
+        &self,
+        candidate: &Candidate,
+        plane: DVec2,
+        (point, height): (DVec3, f64),
+    ) -> bool {
+        let corners = candidate
+            .corners
+            .map(|h| SplitCorner::of(&self.inner.cdt.vertex(h)));
+        let new = SplitCorner {
+            plane,
+            point,
+            height,
+            along: None,
+        };
+        let edges = [[0, 1], [1, 2], [2, 0]];
+        let longest = edges
+            .iter()
+            .map(|&[i, j]| corners[i].point.distance(corners[j].point))
+            .fold(0.0, f64::max);
+        let strict = longest <= STRICT_FACE_SPACINGS * self.min_spacing;
+        edges.iter().any(|&[i, j]| {
+            let face = [corners[i], corners[j], new];
+            self.inner.is_turned(face.map(|c| c.point))
+                && (strict || self.split_point(&face).is_none())
+        })
+    }
+
+    /// Where the face with these corners (counter-clockwise in the plane) is split: the
+    /// surface point at its plane centroid, its height the corners' mean (the blend is
+    /// smooth over a face; the exact height is taken for the vertex inserted). `None` when
+    /// the centroid is not a valid plane point, lies too close to a boundary edge at a corner
+    /// ([`BOUNDARY_CLEARANCE`]), or the point too close to a corner (the minimum spacing).
+    fn split_point(&self, corners: &[SplitCorner; 3]) -> Option<(DVec2, DVec3)> {
+        let surface = &self.inner.surface;
+        let plane = corners.iter().map(|c| c.plane).sum::<DVec2>() / 3.0;
+        if !is_valid_plane_point(plane) {
+            return None;
+        }
+        let height = corners.iter().map(|c| c.height).sum::<f64>() / 3.0;
+        let point = surface.at_height(plane, height);
+        let clear = corners.iter().all(|c| {
+            c.along.is_none_or(|along| {
+                along.iter().all(|&other| {
+                    distance_to_segment(plane, c.plane, other)
+                        >= BOUNDARY_CLEARANCE * c.plane.distance(other)
+                })
+            })
+        });
+        let spacing = self
+            .min_spacing
+            .max(SPACING_FLOOR * surface.chart.ellipsoid.radii.max_element());
+        (clear && point.is_finite() && corners.iter().all(|c| c.point.distance(point) >= spacing))
+            .then_some((plane, point))
+    }
+
     /// Whether the candidate's corners still form an inside face.
     fn is_current(&self, candidate: &Candidate) -> bool {
         let [a, b, c] = candidate.corners;
@@ -634,19 +729,13 @@ impl AdaptiveTriangulation {
     /// Pushes the face's candidate, unless its split point is too close to a corner or not
     /// strictly inside it.
     fn push_face(&mut self, face: FixedFaceHandle<InnerTag>) {
-        let surface = &self.inner.surface;
         let face = self.inner.cdt.face(face);
         let vertices = face.vertices();
-        let [pa, pb, pc] = vertices.map(|v| v.data().point);
-        let [qa, qb, qc] = face.positions().map(|p| DVec2::new(p.x, p.y));
-        let plane = (qa + qb + qc) / 3.0;
-        if !is_valid_plane_point(plane) {
+        let corners = vertices.map(|v| SplitCorner::of(&v));
+        let Some((plane, point)) = self.split_point(&corners) else {
             return;
-        }
-        // The surface at the plane centroid, its height the corners' mean (the blend is
-        // smooth over a face; the exact height is taken for the vertex inserted).
-        let height = vertices.iter().map(|v| v.data().height).sum::<f64>() / 3.0;
-        let point = surface.at_height(plane, height);
+        };
+        let [pa, pb, pc] = corners.map(|c| c.point);
         let centroid = (pa + pb + pc) / 3.0;
         let error = point.distance(centroid);
         if !error.is_finite() {
@@ -654,14 +743,11 @@ impl AdaptiveTriangulation {
         }
         // A face turned against its ellipsoid (the test the assembled mesh is checked with)
         // is the worst there is: it is split before any other, whatever the tolerance.
-        let normal = (pb - pa).cross(pc - pa);
-        let facing = normal.dot(surface.ellipsoid().normal(centroid));
-        let turned = if self.inner.flip {
-            facing > 0.0
+        let error = if self.inner.is_turned([pa, pb, pc]) {
+            f64::INFINITY
         } else {
-            facing < 0.0
+            error
         };
-        let error = if turned { f64::INFINITY } else { error };
         let q = to_point(plane);
         if !face
             .adjacent_edges()
@@ -670,28 +756,41 @@ impl AdaptiveTriangulation {
         {
             return;
         }
-        let clear = vertices.iter().all(|v| {
-            let corner = DVec2::new(v.position().x, v.position().y);
-            v.data().along.is_none_or(|along| {
-                along.iter().all(|&other| {
-                    distance_to_segment(plane, corner, other)
-                        >= BOUNDARY_CLEARANCE * corner.distance(other)
-                })
-            })
-        });
-        if !clear {
-            return;
-        }
-        let spacing = self
-            .min_spacing
-            .max(SPACING_FLOOR * surface.chart.ellipsoid.radii.max_element());
-        if !point.is_finite() || [pa, pb, pc].iter().any(|p| p.distance(point) < spacing) {
-            return;
-        }
         let corners = vertices.map(|v| v.fix());
         self.heap.push(Candidate { error, corners });
     }
 }
+
+/// A face corner as [`AdaptiveTriangulation::split_point`] sees it.
+#[derive(Debug, Clone, Copy)]
+struct SplitCorner {
+    plane: DVec2,
+    point: DVec3,
+    height: f64,
+    /// For a boundary vertex, the chart positions of its neighbours along its loop.
+    along: Option<[DVec2; 2]>,
+}
+
+impl SplitCorner {
+    fn of(v: &VertexHandle<'_, Vertex, (), CdtEdge<()>, bool>) -> SplitCorner {
+        let d = v.data();
+        SplitCorner {
+            plane: DVec2::new(d.position.x, d.position.y),
+            point: d.point,
+            height: d.height,
+            along: d.along,
+        }
+    }
+}
+
+/// Faces up to this many minimum spacings long (eight target edge lengths: the adaptive
+/// scheme's minimum spacing is a quarter of the target) are never split into a face turned
+/// against the ellipsoid ([`AdaptiveTriangulation::split_strands_a_turned_face`]).
+/// Measured: horse K = 24 (the last release's file) at 12 500 vertices has 36, 4 and 4
+/// flipped triangles at 4, 16 and 32 (198 without); at 32 hand K = 18 decodes clean on its
+/// first meshing attempt at 5 000 vertices (at 16 on its third); at 64 blob3's large first
+/// faces stop refining (RMS 2.5 % of the diagonal instead of 0.08 %).
+const STRICT_FACE_SPACINGS: f64 = 32.0;
 
 /// Below this fraction of the largest radius two vertices count as one: a split point that
 /// close to a corner is never inserted, whatever `min_spacing` says.
