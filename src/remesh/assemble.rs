@@ -285,7 +285,8 @@ pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshe
 
 /// Largest mesh [`assemble`] makes only because a coarser one was not clean (50 000
 /// vertices, about 100 000 triangles): beyond it a search over every meshing attempt costs
-/// seconds (28 s for horse K = 20 at 500 000 vertices, none of its meshes clean).
+/// seconds (23–28 s for horse K = 20 at 500 000 vertices, none of whose meshes was
+/// clean).
 pub const FALLBACK_MAX_VERTICES: usize = 50_000;
 
 /// How a mesh that is not clean ranks among others, lowest best: the fewest regions left

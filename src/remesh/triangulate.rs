@@ -33,10 +33,9 @@ use super::chart::RegionChart;
 use super::surface::RegionSurface;
 use super::RemeshError;
 use glam::{DVec2, DVec3};
-use spade::handles::{FixedFaceHandle, FixedVertexHandle, InnerTag, VertexHandle};
+use spade::handles::{FixedFaceHandle, FixedVertexHandle, InnerTag};
 use spade::{
-    validate_coordinate, CdtEdge, ConstrainedDelaunayTriangulation, HasPosition, Point2,
-    Triangulation,
+    validate_coordinate, ConstrainedDelaunayTriangulation, HasPosition, Point2, Triangulation,
 };
 use std::cmp::Ordering;
 use std::collections::{BinaryHeap, HashMap, VecDeque};
@@ -86,6 +85,25 @@ struct Vertex {
     corner: Corner,
     /// For a boundary vertex, the chart positions of its neighbours along its (first) loop.
     along: Option<[DVec2; 2]>,
+}
+
+impl Vertex {
+    /// An interior vertex: at `plane` in the chart, at `point` (at `height` above the
+    /// ellipsoid) on the surface, the region's `index`-th interior vertex.
+    fn interior(plane: DVec2, (point, height): (DVec3, f64), index: u32) -> Vertex {
+        Vertex {
+            position: to_point(plane),
+            point,
+            height,
+            corner: Corner::Interior(index),
+            along: None,
+        }
+    }
+
+    /// Its chart position.
+    fn plane(&self) -> DVec2 {
+        DVec2::new(self.position.x, self.position.y)
+    }
 }
 
 impl HasPosition for Vertex {
@@ -347,13 +365,7 @@ impl RegionCdt {
     ) -> Option<FixedVertexHandle> {
         let index = u32::try_from(self.interior.len()).ok()?;
         let before = self.cdt.num_vertices();
-        let vertex = Vertex {
-            position: to_point(plane),
-            point,
-            height,
-            corner: Corner::Interior(index),
-            along: None,
-        };
+        let vertex = Vertex::interior(plane, (point, height), index);
         let handle = self.cdt.insert_with_hint(vertex, hint).ok()?;
         if self.cdt.num_vertices() == before {
             return None;
@@ -665,28 +677,26 @@ impl AdaptiveTriangulation {
         &self,
         candidate: &Candidate,
         plane: DVec2,
-        (point, height): (DVec3, f64),
+        point: (DVec3, f64),
     ) -> bool {
-        let corners = candidate
-            .corners
-            .map(|h| SplitCorner::of(&self.inner.cdt.vertex(h)));
-        let new = SplitCorner {
-            plane,
-            point,
-            height,
-            along: None,
-        };
+        let corners = candidate.corners.map(|h| *self.inner.cdt.vertex(h).data());
+        // Never inserted: its index is not used.
+        let new = Vertex::interior(plane, point, u32::MAX);
         let edges = [[0, 1], [1, 2], [2, 0]];
+        let mut turned = edges
+            .iter()
+            .map(|&[i, j]| [corners[i], corners[j], new])
+            .filter(|face| self.inner.is_turned(face.map(|v| v.point)))
+            .peekable();
+        if turned.peek().is_none() {
+            return false;
+        }
         let longest = edges
             .iter()
             .map(|&[i, j]| corners[i].point.distance(corners[j].point))
             .fold(0.0, f64::max);
-        let strict = longest <= STRICT_FACE_SPACINGS * self.min_spacing;
-        edges.iter().any(|&[i, j]| {
-            let face = [corners[i], corners[j], new];
-            self.inner.is_turned(face.map(|c| c.point))
-                && (strict || self.split_point(&face).is_none())
-        })
+        longest <= STRICT_FACE_SPACINGS * self.min_spacing
+            || turned.any(|face| self.split_point(&face).is_none())
     }
 
     /// Where the face with these corners (counter-clockwise in the plane) is split: the
@@ -694,19 +704,20 @@ impl AdaptiveTriangulation {
     /// smooth over a face; the exact height is taken for the vertex inserted). `None` when
     /// the centroid is not a valid plane point, lies too close to a boundary edge at a corner
     /// ([`BOUNDARY_CLEARANCE`]), or the point too close to a corner (the minimum spacing).
-    fn split_point(&self, corners: &[SplitCorner; 3]) -> Option<(DVec2, DVec3)> {
+    fn split_point(&self, corners: &[Vertex; 3]) -> Option<(DVec2, DVec3)> {
         let surface = &self.inner.surface;
-        let plane = corners.iter().map(|c| c.plane).sum::<DVec2>() / 3.0;
+        let plane = corners.iter().map(Vertex::plane).sum::<DVec2>() / 3.0;
         if !is_valid_plane_point(plane) {
             return None;
         }
         let height = corners.iter().map(|c| c.height).sum::<f64>() / 3.0;
         let point = surface.at_height(plane, height);
         let clear = corners.iter().all(|c| {
+            let corner = c.plane();
             c.along.is_none_or(|along| {
                 along.iter().all(|&other| {
-                    distance_to_segment(plane, c.plane, other)
-                        >= BOUNDARY_CLEARANCE * c.plane.distance(other)
+                    distance_to_segment(plane, corner, other)
+                        >= BOUNDARY_CLEARANCE * corner.distance(other)
                 })
             })
         });
@@ -731,7 +742,7 @@ impl AdaptiveTriangulation {
     fn push_face(&mut self, face: FixedFaceHandle<InnerTag>) {
         let face = self.inner.cdt.face(face);
         let vertices = face.vertices();
-        let corners = vertices.map(|v| SplitCorner::of(&v));
+        let corners = vertices.map(|v| *v.data());
         let Some((plane, point)) = self.split_point(&corners) else {
             return;
         };
@@ -758,28 +769,6 @@ impl AdaptiveTriangulation {
         }
         let corners = vertices.map(|v| v.fix());
         self.heap.push(Candidate { error, corners });
-    }
-}
-
-/// A face corner as [`AdaptiveTriangulation::split_point`] sees it.
-#[derive(Debug, Clone, Copy)]
-struct SplitCorner {
-    plane: DVec2,
-    point: DVec3,
-    height: f64,
-    /// For a boundary vertex, the chart positions of its neighbours along its loop.
-    along: Option<[DVec2; 2]>,
-}
-
-impl SplitCorner {
-    fn of(v: &VertexHandle<'_, Vertex, (), CdtEdge<()>, bool>) -> SplitCorner {
-        let d = v.data();
-        SplitCorner {
-            plane: DVec2::new(d.position.x, d.position.y),
-            point: d.point,
-            height: d.height,
-            along: d.along,
-        }
     }
 }
 
