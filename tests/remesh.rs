@@ -372,6 +372,8 @@ fn blobs_decode_to_closed_clean_meshes_near_their_source() {
         let out = remesh(&rep, &options(8000, Scheme::Adaptive)).unwrap();
         assert_clean(&out, name);
         assert_closed(&out, name);
+        // Clean the first time: no fallback meshing was needed.
+        assert_eq!(out.attempts, 1, "{name}");
         assert_eq!(out.mesh.topology().component_count(), 1, "{name}");
         let (rms, max) = symmetric_distance(&mesh, &out.mesh, 2000);
         println!("{name}: rms {rms:.5}, max {max:.5} of the diagonal");
@@ -664,11 +666,17 @@ fn a_coarse_mesh_that_is_not_clean_is_subdivided_not_searched_at_the_full_budget
     let coarse = remesh(&rep, &by_vertex_addition(budget / 16)).unwrap();
     // The premise: were the coarse mesh clean, this would test the clean path.
     assert!(!coarse.check.is_clean(), "{:?}", coarse.check);
-    let faults = coarse.check.flipped + coarse.check.degenerate;
+    assert!(coarse.attempts > 1, "{}", coarse.attempts);
+    let (faults, attempts) = (
+        coarse.check.flipped + coarse.check.degenerate,
+        coarse.attempts,
+    );
     let fine = subdivide(&rep, coarse, 2, usize::MAX).unwrap();
     let decoded = remesh(&rep, &options(budget, Scheme::Adaptive)).unwrap();
     assert_eq!(decoded.mesh.positions(), fine.mesh.positions());
     assert_eq!(decoded.mesh.faces(), fine.mesh.faces());
+    // The coarse mesh's attempts and no other: nothing was meshed at 62 500 vertices.
+    assert_eq!(decoded.attempts, attempts);
     let c = decoded.check;
     assert!(c.flipped + c.degenerate <= faults, "{c:?} from {faults}");
     let n = decoded.mesh.vertex_count();
@@ -881,6 +889,7 @@ fn ellip_decode_writes_a_valid_glb() {
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["closed"], true);
     assert_eq!(v["flipped_triangles"], 0);
+    assert_eq!(v["meshing_attempts"], 1);
     let n = v["vertices"].as_u64().unwrap();
     assert!(n.abs_diff(3000) <= 30, "{n}");
     let out = ellip(&[

@@ -140,6 +140,8 @@ pub struct DecodeReport {
     /// increasing order.
     omitted_regions: Vec<u32>,
     colored: bool,
+    /// How many times the regions were meshed ([`Remeshed::attempts`]).
+    meshing_attempts: usize,
     seconds: f64,
 }
 
@@ -247,6 +249,7 @@ pub fn remesh_and_write(
         flipped_triangles: check.flipped,
         omitted_regions: remeshed.omitted.clone(),
         colored,
+        meshing_attempts: remeshed.attempts,
         seconds,
     })
 }
@@ -254,7 +257,7 @@ pub fn remesh_and_write(
 /// The report in words, on stderr.
 pub fn print_report(r: &DecodeReport) {
     eprintln!(
-        "wrote {}: {} vertices, {} triangles, {} regions ({}), {}{}, in {:.2} s",
+        "wrote {}: {} vertices, {} triangles, {} regions ({}), {}{}, in {:.2} s{}",
         r.output,
         r.vertices,
         r.triangles,
@@ -270,7 +273,11 @@ pub fn print_report(r: &DecodeReport) {
         } else {
             ""
         },
-        r.seconds
+        r.seconds,
+        match r.meshing_attempts {
+            0 | 1 => String::new(),
+            n => format!(" ({n} meshing attempts)"),
+        }
     );
 }
 

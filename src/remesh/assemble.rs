@@ -236,7 +236,20 @@ pub fn region_faults(
 /// away with the budget. When some region fails in every attempt, with
 /// [`RemeshOptions::leave_out`] the attempts are made again leaving out each region that
 /// fails ([`MeshCheck::omitted_regions`]); if that fails too, the first error stands.
+/// [`Remeshed::attempts`] counts the meshings made.
 pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshed, RemeshError> {
+    let mut attempts = 0;
+    let mut out = assemble_counted(rep, options, &mut attempts)?;
+    out.attempts = attempts;
+    Ok(out)
+}
+
+/// [`assemble`], counting the meshings made in `attempts`.
+fn assemble_counted(
+    rep: &Representation,
+    options: &RemeshOptions,
+    attempts: &mut usize,
+) -> Result<Remeshed, RemeshError> {
     rep.validate()?;
     options.validate()?;
     let budget = options.budget(rep);
@@ -253,7 +266,7 @@ pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshe
             vertices: Some(coarse_budget),
             ..options.clone()
         };
-        let Ok(coarse) = assemble_unsubdivided(rep, &coarse_options, false) else {
+        let Ok(coarse) = assemble_unsubdivided(rep, &coarse_options, false, attempts) else {
             break;
         };
         match subdivide(rep, coarse, levels, options.max_vertices) {
@@ -266,18 +279,18 @@ pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshe
         if budget > FALLBACK_MAX_VERTICES {
             return Ok(kept);
         }
-        return match assemble_unsubdivided(rep, options, false) {
+        return match assemble_unsubdivided(rep, options, false, attempts) {
             Ok(out) if rank(&out.check) < rank(&kept.check) => Ok(out),
             _ => Ok(kept),
         };
     }
-    match assemble_unsubdivided(rep, options, false) {
+    match assemble_unsubdivided(rep, options, false, attempts) {
         // Some region fails in every attempt (a scan's fragment a few quantisation steps
         // across whose loops enclose nothing on its needle of an ellipsoid, loops that
         // cross however they are untangled): rather than no mesh at all, the others, with a
         // hole where it would be, counted in MeshCheck::omitted_regions.
         Err(e @ RemeshError::Region { .. }) if options.leave_out => {
-            assemble_unsubdivided(rep, options, true).map_err(|_| e)
+            assemble_unsubdivided(rep, options, true, attempts).map_err(|_| e)
         }
         other => other,
     }
@@ -305,12 +318,14 @@ fn keep_better(best: &mut Option<Remeshed>, out: Remeshed) {
     }
 }
 
-/// [`assemble`] without subdivision: every vertex placed by the scheme (the attempts below).
-/// With `leave_out`, a region that fails is left out of the attempt instead of ending it.
+/// [`assemble`] without subdivision: every vertex placed by the scheme (the attempts below,
+/// counted in `made`). With `leave_out`, a region that fails is left out of the attempt
+/// instead of ending it.
 fn assemble_unsubdivided(
     rep: &Representation,
     options: &RemeshOptions,
     leave_out: bool,
+    made: &mut usize,
 ) -> Result<Remeshed, RemeshError> {
     let prepared = prepare(rep, options)?;
     let settings = prepared.settings;
@@ -386,7 +401,9 @@ fn assemble_unsubdivided(
     for ((projection, radial_where_untangled), _, (attempt, untangle)) in attempts {
         plan.projection = projection;
         plan.radial_where_untangled = radial_where_untangled;
-        match plan.mesh(attempt, *untangle) {
+        let meshed = plan.mesh(attempt, *untangle);
+        *made += usize::from(!matches!(meshed, Ok(None)));
+        match meshed {
             Ok(None) => {}
             Ok(Some(out)) => {
                 let c = out.check;
@@ -1467,6 +1484,7 @@ pub(super) fn measured(rep: &Representation, mesh: Mesh, face_regions: Vec<u32>)
         face_regions,
         check,
         omitted: Vec::new(),
+        attempts: 0,
     }
 }
 

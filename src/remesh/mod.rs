@@ -175,6 +175,11 @@ pub struct Remeshed {
     /// increasing order (their count is [`assemble::MeshCheck::omitted_regions`]); empty
     /// unless every attempt at meshing them all failed.
     pub omitted: Vec<u32>,
+    /// How many times the regions were meshed to make this, over every budget tried: one
+    /// when the first meshing is clean (at the budget, or coarser and then subdivided);
+    /// each fallback (another boundary treatment or projection, another budget, regions
+    /// left out) counts one more ([`assemble::assemble`]). Decoding time grows with it.
+    pub attempts: usize,
 }
 
 /// Why a representation could not be remeshed.
