@@ -147,8 +147,9 @@ pub fn encode_mesh(
     // is raised by half (beyond one region per further component), a few times, with the
     // weighting asked for (raised with area weighting, armadillo needed 27 regions instead
     // of 22): armadillo at K = 12, whose regions fold over their ellipsoids however they are
-    // split, does not decode whole and decodes clean at 18. The best file is kept, the first
-    // clean one ending the search.
+    // split, did not decode whole and decoded clean at 18 (since the decoder's first attempt
+    // prunes only narrow double ears, its weighted segmentation mended is clean first). The
+    // best file is kept, the first clean one ending the search.
     let mut best = (score, encoded);
     if !settings.segment.area_weighting {
         let weighted = EncodeSettings {
@@ -205,7 +206,8 @@ pub fn encode_mesh(
 
 /// Most rounds of mending for [`encode_mesh`]'s segmentation weighted by area, tried when
 /// no file at the requested count decodes clean: half of [`MAX_SPLIT_ROUNDS`], so that on a
-/// mesh it cannot help (armadillo at K = 12, none of 24 rounds clean) it costs half as much;
+/// mesh it cannot help (armadillo at K = 12 with the last release's decoder, none of 24
+/// rounds clean) it costs half as much;
 /// CGAL's camel and couplings were clean after 3 and 9 rounds.
 pub const MAX_REWEIGHTED_ROUNDS: usize = MAX_SPLIT_ROUNDS / 2;
 

@@ -325,20 +325,22 @@ fn a_file_that_decodes_is_kept_over_one_that_does_not() {
 
 /// When no mending makes the file at the requested region count decode clean, the encoder
 /// segments again weighting faces by area, then with half as many regions more. armadillo
-/// at K = 12 has regions that fold over their ellipsoids however they are split (24 rounds
-/// of mending left it undecodable, and weighting by area does not help its evenly
-/// tessellated surface); at 18 it decodes clean.
+/// at K = 12 has regions that fold over their ellipsoids however they are split: no round
+/// of mending its plain segmentation gives a file that decodes. Until the first meshing
+/// attempt pruned only narrow double ears (`refine::Prune::Narrow`), weighting by area did
+/// not help either and the count was raised to 18 (20 regions, 2 359 bytes); now the
+/// weighted segmentation, mended, decodes clean (27 regions, 3 155 bytes) and is kept.
 #[test]
-fn when_no_file_at_the_requested_count_decodes_clean_the_count_is_raised() {
+fn when_no_file_at_the_requested_count_decodes_clean_the_encoder_falls_back() {
     let Some(mesh) = common::shared_mesh("armadillo") else {
         return;
     };
     let encoded = encode_mesh(&mesh, &settings(12), &mut |_| {}).unwrap();
     let v = &encoded.verification;
     assert_eq!(v.requested_regions, 12);
-    assert_eq!(v.raised_regions, Some(18), "{v:?}");
-    assert!(!v.area_weighted, "{v:?}");
-    assert!(encoded.representation.region_count() >= 18);
+    // One fallback made the file kept: weighting by area or, failing that, more regions.
+    assert!(v.area_weighted != v.raised_regions.is_some(), "{v:?}");
+    assert!(encoded.representation.region_count() > 12);
     let check = decoded_check(&encoded.bytes);
     assert!(check.is_clean(), "{check:?}");
     assert_eq!(v.problem, None);

@@ -683,6 +683,22 @@ fn a_coarse_mesh_that_is_not_clean_is_subdivided_not_searched_at_the_full_budget
     assert!(n.abs_diff(budget) * 100 <= budget, "{n} vertices");
 }
 
+/// The first meshing attempt drops only the double ears whose chord is narrow
+/// ([`ellip::remesh::refine::MAX_PRUNED_ANGLE`]). Pruning every one, hand K = 18 at 12 500
+/// vertices had a chord 0.2 long across a finger of radius 0.1: the face on it turned over,
+/// too close to the chord to be split (one flipped triangle), in the first two attempts, and
+/// the third, without pruning, was clean. Now the first is.
+#[test]
+fn a_pruned_chord_does_not_cut_across_a_finger() {
+    let Some(hand) = common::shared_mesh("hand") else {
+        return;
+    };
+    let (_, rep) = encode(&hand, 18);
+    let out = remesh(&rep, &by_vertex_addition(12_500)).unwrap();
+    assert_clean(&out, "hand K = 18 at 12 500 vertices");
+    assert_eq!(out.attempts, 1);
+}
+
 /// The encoder checks its file at one budget (the source's vertex count); a user decodes at
 /// any. The horse at K = 24 has needle-like regions on its legs (radii down to 0.004 of a
 /// 0.2 model), whose charts are far from isotropic: vertex addition used to split faces near

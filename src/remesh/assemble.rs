@@ -24,7 +24,7 @@
 //! regions (the part of the output the file pins down before any interior is meshed).
 
 use super::chart::{Projection, RegionChart};
-use super::refine::{refine_arcs, RefineSettings};
+use super::refine::{refine_arcs, Prune, RefineSettings};
 use super::subdivide::subdivide;
 use super::surface::{Lift, RegionSurface};
 use super::triangulate::{
@@ -189,7 +189,7 @@ fn prepare(rep: &Representation, options: &RemeshOptions) -> Result<Prepared, Re
         spacing,
         tolerance: tolerance.unwrap_or(spacing / 16.0),
         max_new_points: (budget / 4).min(options.max_vertices - minimum),
-        prune: true,
+        prune: Prune::Narrow,
     };
     Ok(Prepared {
         budget,
@@ -331,34 +331,28 @@ fn assemble_unsubdivided(
     let settings = prepared.settings;
     let mut plan = prepared.plan(rep, options);
     plan.leave_out = leave_out;
-    // Attempts, in order: refined and pruned arcs; the stored arcs, pruned (refined points
+    // Attempts, in order: refined arcs, pruned where the chord is narrow (a chord across a
+    // thin part can turn a face over); the stored arcs, pruned the same way (refined points
     // off the stored polyline can make loops cross where arcs meet at sharp angles or where
-    // the fitted ellipsoids meet far from the stored boundary); the stored arcs as they are
-    // (pruning can shortcut a corner across a neighbouring arc); and the same without
-    // untangling. A clean mesh ends the search; otherwise the best mesh is kept (the fewest
-    // regions left out, then sound topology, then the fewest degenerate and flipped
-    // triangles, then the earliest), else the last error.
+    // the fitted ellipsoids meet far from the stored boundary); both pruned everywhere (a
+    // kept ear can leave a triangle in both regions; not made when that prunes nothing
+    // more); the stored arcs as they are (pruning can shortcut a corner across a
+    // neighbouring arc); and the same without untangling. A clean mesh ends the search;
+    // otherwise the best mesh is kept (the fewest regions left out, then sound topology,
+    // then the fewest degenerate and flipped triangles, then the earliest), else the last
+    // error.
     let stored = RefineSettings {
         max_new_points: 0,
         ..settings
     };
+    let pruned = |s: RefineSettings, prune| RefineSettings { prune, ..s };
     let attempts = [
         (settings, true),
         (stored, true),
-        (
-            RefineSettings {
-                prune: false,
-                ..stored
-            },
-            true,
-        ),
-        (
-            RefineSettings {
-                prune: false,
-                ..stored
-            },
-            false,
-        ),
+        (pruned(settings, Prune::All), true),
+        (pruned(stored, Prune::All), true),
+        (pruned(stored, Prune::Off), true),
+        (pruned(stored, Prune::Off), false),
     ];
     // Each with the boundary reaching the ellipsoids at their closest points; then so,
     // except for the regions whose loops cross that way and not along the rays from their
@@ -373,9 +367,14 @@ fn assemble_unsubdivided(
     ]
     .into_iter()
     .flat_map(|p| attempts.iter().enumerate().map(move |(k, a)| (p, k, a)))
-    // Mixed projections only differ where untangling runs.
-    .filter(|&((_, radial), k, (_, untangle))| {
-        (k != 1 || settings.max_new_points != 0) && (!radial || *untangle)
+    // The stored arcs repeat the refined ones when nothing is refined; mixed projections
+    // only differ where untangling runs; every ear is pruned with the first projection only
+    // (of 190 decodes of 38 files, none came clean from it with the others, and each is a
+    // meshing more for a file that no attempt makes clean).
+    .filter(|&((projection, radial), k, (attempt, untangle))| {
+        (![1, 3].contains(&k) || settings.max_new_points != 0)
+            && (!radial || *untangle)
+            && (attempt.prune != Prune::All || (projection == Projection::Closest && !radial))
     });
     let mut attempts: Vec<_> = attempts.collect();
     if leave_out {
@@ -445,23 +444,22 @@ struct Plan<'a> {
 
 impl Plan<'_> {
     /// Refines the arcs with `settings` (and untangles them if asked), triangulates every
-    /// piece and joins them.
-    /// `None` when the attempt would repeat an earlier one: with
-    /// [`Plan::radial_where_untangled`], no region is charted radially.
+    /// piece and joins them. `None` when the attempt would repeat an earlier one
+    /// ([`Plan::pieces`]).
     fn mesh(
         &self,
         settings: &RefineSettings,
         untangle_arcs: bool,
     ) -> Result<Option<Remeshed>, RemeshError> {
         let mut faults = Vec::new();
-        let (positions, pieces, switched) = self.pieces(
+        let Some((positions, pieces)) = self.pieces(
             settings,
             untangle_arcs,
             self.leave_out.then_some(&mut faults),
-        )?;
-        if self.radial_where_untangled && !switched {
+        )?
+        else {
             return Ok(None);
-        }
+        };
         let mut omitted: Vec<u32> = faults.iter().map(|f| f.region).collect();
         // Meshed on the ellipsoids with the boundary's offsets blended in near the boundary,
         // over bands at least as wide as the target edge length; a region left out loses
@@ -529,24 +527,28 @@ impl Plan<'_> {
         untangle_arcs: bool,
     ) -> Result<(Vec<RegionFault>, bool), RemeshError> {
         let mut faults = Vec::new();
-        let (_, pieces, switched) = self.pieces(settings, untangle_arcs, Some(&mut faults))?;
+        let Some((_, pieces)) = self.pieces(settings, untangle_arcs, Some(&mut faults))? else {
+            return Ok((Vec::new(), false));
+        };
         // Stable: a whole ellipsoid's two halves keep their order.
         faults.sort_by_key(|f| f.region);
         faults.dedup_by_key(|f| f.region);
-        let meshable = !pieces.is_empty() && (switched || !self.radial_where_untangled);
-        Ok((faults, meshable))
+        Ok((faults, !pieces.is_empty()))
     }
 
     /// The boundary vertex pool and every piece in its chart, settled
-    /// ([`settle_charts`]), and whether untangling charted a region radially instead
-    /// ([`Plan::radial_where_untangled`]). With `faults`, a region whose chart or boundary
-    /// triangulation fails is noted there and left out instead of ending the attempt.
+    /// ([`settle_charts`]). With `faults`, a region whose chart or boundary triangulation
+    /// fails is noted there and left out instead of ending the attempt.
+    ///
+    /// `None` when the attempt would repeat an earlier one: with [`Prune::All`], no point was
+    /// pruned that [`Prune::Narrow`] keeps (every such attempt comes after its narrow twin); with
+    /// [`Plan::radial_where_untangled`], untangling charted no region radially.
     fn pieces(
         &self,
         settings: &RefineSettings,
         untangle_arcs: bool,
         mut faults: Option<&mut Vec<RegionFault>>,
-    ) -> Result<(Vec<DVec3>, Vec<Piece>, bool), RemeshError> {
+    ) -> Result<Option<Pieces>, RemeshError> {
         let Plan {
             rep,
             options,
@@ -555,6 +557,9 @@ impl Plan<'_> {
             ..
         } = *self;
         let mut refined = refine_arcs(rep, settings);
+        if settings.prune == Prune::All && refined.wide_ears == 0 {
+            return Ok(None);
+        }
         let mut charts = Vec::new();
         let mut projections = vec![self.projection; rep.region_count()];
         if untangle_arcs {
@@ -566,10 +571,8 @@ impl Plan<'_> {
                 self.radial_where_untangled,
             );
         }
-        let switched = projections.iter().any(|&p| p != self.projection);
-        if self.radial_where_untangled && !switched {
-            // The attempt would repeat the one without radial charts: no charts, no pieces.
-            return Ok((Vec::new(), Vec::new(), false));
+        if self.radial_where_untangled && projections.iter().all(|&p| p == self.projection) {
+            return Ok(None);
         }
         let mut pool = Pool::new(&refined.points);
         let mut pieces = Vec::with_capacity(rep.region_count());
@@ -664,9 +667,12 @@ impl Plan<'_> {
         }
 
         settle_charts(rep, &mut pieces, spacing / 4.0, faults)?;
-        Ok((pool.positions, pieces, switched))
+        Ok(Some((pool.positions, pieces)))
     }
 }
+
+/// The boundary vertex pool and the pieces meshed on it.
+type Pieces = (Vec<DVec3>, Vec<Piece>);
 
 /// `result`'s value; with `faults`, a region error is noted there instead (`None`: the
 /// region is left out) rather than returned.
