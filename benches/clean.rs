@@ -18,6 +18,11 @@
 //! file in DIR (meshes the project has not seen), at the default K and at 18, each plus one
 //! region for each further connected component
 //! ([`ellip::segment::default_region_count`]).
+//!
+//! With `--budgets`: the small meshes at K = 12 and 24, each file decoded at each of
+//! [`BUDGETS`] vertices without subdivision (every vertex placed by vertex addition), and
+//! besides the clean decodes, those whose first meshing attempt is clean (one meshing): how
+//! files fare at densities the encoder's check did not look at.
 
 use ellip::encode::{encode_mesh, EncodeSettings};
 use ellip::format::{decode, Limits};
@@ -44,10 +49,14 @@ const SMALL: [&str; 12] = [
 
 const LARGE: [&str; 4] = ["armadillo", "bunny_scan", "koala", "igea"];
 
+/// The vertex budgets of `--budgets`.
+const BUDGETS: [usize; 5] = [1_000, 2_000, 5_000, 12_500, 31_250];
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let large = args.iter().any(|a| a == "--large");
     let verify = !args.iter().any(|a| a == "--no-verify");
+    let budgets = args.iter().any(|a| a == "--budgets");
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let shared = root.join("../shared/meshes");
     let dir = args.iter().position(|a| a == "--dir").map(|i| {
@@ -66,6 +75,7 @@ fn main() {
     } else if shared.is_dir() {
         let names: &[&str] = if large { &LARGE } else { &SMALL };
         let ks = match (large, verify) {
+            _ if budgets => vec![12, 24],
             (true, _) => vec![12, 18],
             (false, true) => vec![8, 12, 18, 24, 32],
             (false, false) => vec![8, 12, 18, 24],
@@ -86,9 +96,25 @@ fn main() {
         "decoder check: {}",
         if verify { "on" } else { "off (--no-verify)" }
     );
-    println!("| file | K | regions | bytes | encode s | decode s | meshings | result |");
-    println!("|---|---:|---:|---:|---:|---:|---:|---|");
-    let (mut clean, mut total, mut meshings) = (0, 0, 0);
+    // Each file is decoded as `ellip decode` does by default, or at each budget.
+    let decodings: Vec<(String, RemeshOptions)> = if budgets {
+        BUDGETS
+            .iter()
+            .map(|&b| {
+                let options = RemeshOptions {
+                    vertices: Some(b),
+                    subdivision: false,
+                    ..RemeshOptions::default()
+                };
+                (b.to_string(), options)
+            })
+            .collect()
+    } else {
+        vec![("default".to_string(), RemeshOptions::default())]
+    };
+    println!("| file | K | regions | bytes | encode s | vertices | decode s | meshings | result |");
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---|");
+    let (mut clean, mut total, mut meshings, mut first_clean) = (0, 0, 0, 0);
     for path in &paths {
         let Ok(imported) = read_mesh(path, &ImportOptions::default()) else {
             eprintln!("skipping {}", path.display());
@@ -100,7 +126,6 @@ fn main() {
         // Each further component needs a region of its own.
         let extra = default_region_count(&imported.mesh) - DEFAULT_REGIONS;
         for k in ks.iter().map(|k| k + extra) {
-            total += 1;
             let settings = EncodeSettings {
                 segment: SegmentOptions {
                     regions: RegionCount::Fixed(k),
@@ -113,36 +138,43 @@ fn main() {
             let encoded = match encode_mesh(&imported.mesh, &settings, &mut |_| {}) {
                 Ok(e) => e,
                 Err(e) => {
-                    println!("| {name} | {k} | | | | | | encode error: {e} |");
+                    total += decodings.len();
+                    println!("| {name} | {k} | | | | | | | encode error: {e} |");
                     continue;
                 }
             };
             let encode_seconds = start.elapsed().as_secs_f64();
-            let start = Instant::now();
-            let result = decode(&encoded.bytes, &Limits::default())
-                .map_err(|e| e.to_string())
-                .and_then(|rep| remesh(&rep, &RemeshOptions::default()).map_err(|e| e.to_string()));
-            let decode_seconds = start.elapsed().as_secs_f64();
-            let attempts = result.as_ref().map_or(0, |out| out.attempts);
-            meshings += attempts;
-            let verdict = match result {
-                Ok(out) if out.check.is_clean_from(source_manifold) => {
-                    clean += 1;
-                    if out.check.manifold {
-                        "clean".to_string()
-                    } else {
-                        "clean (not manifold, as its source)".to_string()
+            for (vertices, options) in &decodings {
+                total += 1;
+                let start = Instant::now();
+                let result = decode(&encoded.bytes, &Limits::default())
+                    .map_err(|e| e.to_string())
+                    .and_then(|rep| remesh(&rep, options).map_err(|e| e.to_string()));
+                let decode_seconds = start.elapsed().as_secs_f64();
+                let attempts = result.as_ref().map_or(0, |out| out.attempts);
+                meshings += attempts;
+                let verdict = match result {
+                    Ok(out) if out.check.is_clean_from(source_manifold) => {
+                        clean += 1;
+                        first_clean += usize::from(out.attempts == 1);
+                        if out.check.manifold {
+                            "clean".to_string()
+                        } else {
+                            "clean (not manifold, as its source)".to_string()
+                        }
                     }
-                }
-                Ok(out) => out.check.faults(),
-                Err(e) => format!("does not decode: {e}"),
-            };
-            println!(
-                "| {name} | {k} | {} | {} | {encode_seconds:.2} | {decode_seconds:.2} | {attempts} | {verdict} |",
-                encoded.representation.region_count(),
-                encoded.bytes.len(),
-            );
+                    Ok(out) => out.check.faults(),
+                    Err(e) => format!("does not decode: {e}"),
+                };
+                println!(
+                    "| {name} | {k} | {} | {} | {encode_seconds:.2} | {vertices} | {decode_seconds:.2} | {attempts} | {verdict} |",
+                    encoded.representation.region_count(),
+                    encoded.bytes.len(),
+                );
+            }
         }
     }
-    println!("\nclean: {clean} of {total}; meshings (Remeshed::attempts) in all: {meshings}");
+    println!(
+        "\nclean: {clean} of {total} ({first_clean} in one meshing); meshings (Remeshed::attempts) in all: {meshings}"
+    );
 }
