@@ -346,14 +346,21 @@ fn assemble_unsubdivided(
         ..settings
     };
     let pruned = |s: RefineSettings, prune| RefineSettings { prune, ..s };
-    let attempts = [
+    // An attempt equal to an earlier one (the stored arcs are the refined ones when nothing
+    // is refined) is not made.
+    let mut treatments: Vec<(RefineSettings, bool)> = Vec::new();
+    for treatment in [
         (settings, true),
         (stored, true),
         (pruned(settings, Prune::All), true),
         (pruned(stored, Prune::All), true),
         (pruned(stored, Prune::Off), true),
         (pruned(stored, Prune::Off), false),
-    ];
+    ] {
+        if !treatments.contains(&treatment) {
+            treatments.push(treatment);
+        }
+    }
     // Each with the boundary reaching the ellipsoids at their closest points; then so,
     // except for the regions whose loops cross that way and not along the rays from their
     // ellipsoids' centres; then along the rays for every region (section 5.1's radial map,
@@ -366,14 +373,12 @@ fn assemble_unsubdivided(
         (Projection::Radial, false),
     ]
     .into_iter()
-    .flat_map(|p| attempts.iter().enumerate().map(move |(k, a)| (p, k, a)))
-    // The stored arcs repeat the refined ones when nothing is refined; mixed projections
-    // only differ where untangling runs; every ear is pruned with the first projection only
-    // (of 190 decodes of 38 files, none came clean from it with the others, and each is a
-    // meshing more for a file that no attempt makes clean).
-    .filter(|&((projection, radial), k, (attempt, untangle))| {
-        (![1, 3].contains(&k) || settings.max_new_points != 0)
-            && (!radial || *untangle)
+    .flat_map(|p| treatments.iter().map(move |a| (p, a)))
+    // Mixed projections only differ where untangling runs; every ear is pruned with the
+    // first projection only (of 190 decodes of 38 files, none came clean from it with the
+    // others, and each is a meshing more for a file that no attempt makes clean).
+    .filter(|&((projection, radial), (attempt, untangle))| {
+        (!radial || *untangle)
             && (attempt.prune != Prune::All || (projection == Projection::Closest && !radial))
     });
     let mut attempts: Vec<_> = attempts.collect();
@@ -381,7 +386,7 @@ fn assemble_unsubdivided(
         // Meshing every attempt with regions left out would cost a whole mesh each: only
         // those whose charts fail for the fewest regions are meshed.
         let mut counts: Vec<(usize, usize)> = Vec::new();
-        for (i, &((projection, radial_where_untangled), _, (attempt, untangle))) in
+        for (i, &((projection, radial_where_untangled), (attempt, untangle))) in
             attempts.iter().enumerate()
         {
             plan.projection = projection;
@@ -397,7 +402,7 @@ fn assemble_unsubdivided(
             .map(|&(_, i)| attempts[i])
             .collect();
     }
-    for ((projection, radial_where_untangled), _, (attempt, untangle)) in attempts {
+    for ((projection, radial_where_untangled), (attempt, untangle)) in attempts {
         plan.projection = projection;
         plan.radial_where_untangled = radial_where_untangled;
         let meshed = plan.mesh(attempt, *untangle);
