@@ -17,6 +17,7 @@ use crate::ellipsoid::Ellipsoid;
 use crate::format::{self, simplify::DEFAULT_RELATIVE_TOLERANCE, EncodeError, EncodeOptions};
 use crate::mesh::Mesh;
 use crate::representation::{InvalidRepresentation, Metadata, Representation};
+use crate::segment::proxy::speck_faces;
 use crate::segment::{
     dissolve_regions, segment_with, split_regions, Cut, EllipsoidMetric, Progress, RegionCount,
     SegmentError, SegmentOptions, Segmentation, Split,
@@ -561,8 +562,20 @@ fn represent(
     let smoothed = smooth_boundaries(mesh, &graph, &segmentation.proxies, &settings.smooth)?;
     let mut positions = mesh.positions().to_vec();
     // An arc is stored as faithfully as the more faithful of its two regions asks; arcs at
-    // the mesh's points keep them, junctions included.
+    // the mesh's points keep them, junctions included. A speck (a piece of a scan too small
+    // for an ellipsoid, `speck_faces`) is stored exactly from the start: smoothing moves
+    // its three or four points toward the ellipsoids around it, which can turn it over (30
+    // single-triangle regions of Stanford's dragon at `res4` decoded flipped so).
+    let mut specks = vec![true; segmentation.region_count()];
+    for (&speck, &r) in speck_faces(mesh).iter().zip(&segmentation.labels) {
+        if let Some(s) = specks.get_mut(r as usize) {
+            *s &= speck;
+        }
+    }
     let of = |r: u32| {
+        if specks.get(r as usize).copied().unwrap_or(false) {
+            return Fidelity::Exact;
+        }
         fidelity
             .get(r as usize)
             .copied()

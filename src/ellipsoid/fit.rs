@@ -35,6 +35,9 @@
 //!   the upper cap, which at 10³ diagonals deviates from a plane by at most D²/(8·10³·D)
 //!   = 1.25·10⁻⁴·D across a whole-model patch. The centre stays within 4× the cap of the
 //!   region.
+//! - **Specks.** A piece of the mesh with fewer vertices than the nine parameters (a scan's
+//!   fins and loose triangles) leaves an ellipsoid free between its samples; the
+//!   segmentation fits it with a sphere tangent to it instead ([`fit_tangent_sphere`]).
 //! - **Large regions.** The iterations use at most [`FitOptions::max_solver_points`] samples,
 //!   picked with a fixed stride and reweighted so the total weight is unchanged; the
 //!   returned error is then evaluated on every sample at full resolution.
@@ -295,6 +298,102 @@ pub fn fit_ellipsoid(input: &FitInput<'_>, options: &FitOptions) -> Fit {
         }
     }
     best.unwrap_or_else(|| degenerate_fit(input, options))
+}
+
+/// Fewer samples than the nine parameters: too few for an ellipsoid
+/// ([`fit_tangent_sphere`]).
+pub const MIN_ELLIPSOID_SAMPLES: usize = 9;
+
+/// For an input with fewer usable samples than [`MIN_ELLIPSOID_SAMPLES`]: the sphere
+/// tangent to the samples' plane (least squares) at their weighted centroid, on the side
+/// their normals face, whose radius gives the lowest objective among the samples' spread times 2^k up
+/// to [`FitOptions::max_radius`] (and the cap itself: a flat patch is nearly a plane), for
+/// the signs [`FitOptions::signs`] allows. `None` for other inputs, or when the normals
+/// cancel.
+///
+/// For the specks of a scan, pieces of one or two triangles (see
+/// [`crate::segment::proxy::speck_faces`]): so few samples leave an ellipsoid free between
+/// them. Matched to a single triangle's corners and normals, [`fit_ellipsoid`] returns
+/// needles a hundredth of the diagonal thick with the triangle inside, whose normal at the
+/// triangle's centre points anywhere; a tangent sphere's normal there is the patch's own.
+pub fn fit_tangent_sphere(input: &FitInput<'_>, options: &FitOptions) -> Option<Fit> {
+    let samples: Vec<(f64, DVec3, DVec3)> = (0..input.len())
+        .filter_map(|i| input.usable_sample(i).map(|(w, p, n, _)| (w, p, n)))
+        .take(MIN_ELLIPSOID_SAMPLES)
+        .collect();
+    if samples.is_empty() || samples.len() >= MIN_ELLIPSOID_SAMPLES {
+        return None;
+    }
+    let total: f64 = samples.iter().map(|s| s.0).sum();
+    let centroid = samples.iter().map(|s| s.0 * s.1).sum::<DVec3>() / total;
+    let mean_normal = samples
+        .iter()
+        .map(|s| s.0 * s.2)
+        .sum::<DVec3>()
+        .try_normalize()?;
+    // The samples' plane (through three or more points not on a line), facing the way
+    // their normals do; else their mean normal.
+    let mut cov = [[0.0; 3]; 3];
+    for &(w, p, _) in &samples {
+        let d = p - centroid;
+        for (i, row) in cov.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v += w * d[i] * d[j];
+            }
+        }
+    }
+    let (values, axes) = eigen_symmetric(cov);
+    let normal = if values[1] > 1e-6 * values[0] && values[0] > 0.0 {
+        let n = axes.z_axis;
+        if n.dot(mean_normal) < 0.0 {
+            -n
+        } else {
+            n
+        }
+    } else {
+        mean_normal
+    };
+    let scale = if options.scale.is_finite() && options.scale > 0.0 {
+        options.scale
+    } else {
+        1.0
+    };
+    let (min_radius, max_radius) = (options.min_radius * scale, options.max_radius * scale);
+    let spread = samples
+        .iter()
+        .map(|s| s.1.distance(centroid))
+        .fold(0.0, f64::max)
+        .max(min_radius);
+    if !(centroid.is_finite() && spread.is_finite() && spread < max_radius) {
+        return None;
+    }
+    let signs: &[Sign] = match options.signs {
+        SignChoice::Both => &[Sign::Positive, Sign::Negative],
+        SignChoice::Only(Sign::Positive) => &[Sign::Positive],
+        SignChoice::Only(Sign::Negative) => &[Sign::Negative],
+    };
+    let mut radii = Vec::new();
+    let mut r = spread;
+    while r < max_radius {
+        radii.push(r);
+        r *= 2.0;
+    }
+    radii.push(max_radius);
+    let mut best: Option<Fit> = None;
+    for &sign in signs {
+        for &radius in &radii {
+            // A negative ellipsoid's surface faces its centre.
+            let ellipsoid = Ellipsoid {
+                sign,
+                ..Ellipsoid::sphere(centroid - sign.factor() * radius * normal, radius)
+            };
+            let error = evaluate_error(input, options, &ellipsoid);
+            if best.is_none_or(|b| error < b.error) {
+                best = Some(Fit { ellipsoid, error });
+            }
+        }
+    }
+    best
 }
 
 /// The objective at full resolution, in world units; capped to a finite value.
@@ -1208,6 +1307,60 @@ fn solve_spd<const N: usize>(mut a: [[f64; N]; N], mut b: [f64; N]) -> Option<[f
 mod tests {
     use super::*;
     use crate::rng::SplitMix64;
+
+    #[test]
+    fn a_single_triangle_gets_a_sphere_tangent_to_it() {
+        // A fin: a triangle whose vertex normals lean toward the surface it stands on (but
+        // still sum to its own side), as on a scan.
+        let (a, b, c) = (
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(0.02, 0.0, 0.0),
+            DVec3::new(0.0, 0.02, 0.01),
+        );
+        let face = (b - a).cross(c - a).normalize();
+        let lean = DVec3::new(0.3, -0.2, 0.9).normalize();
+        let points = [a, b, c];
+        let normals = [
+            face,
+            (face + lean).normalize(),
+            (face + 0.5 * lean).normalize(),
+        ];
+        let curvatures = [0.0; 3];
+        let input = FitInput::new(&points, &normals, &curvatures).unwrap();
+        let scale = super::super::MeshScale::new(1.0, 0.01, 0.1);
+        let centroid = (a + b + c) / 3.0;
+        for sign in [Sign::Positive, Sign::Negative] {
+            let options = FitOptions {
+                signs: SignChoice::Only(sign),
+                ..FitOptions::surface(&scale)
+            };
+            let fit = fit_tangent_sphere(&input, &options).expect("three samples: a sphere");
+            let e = fit.ellipsoid;
+            assert_eq!(e.sign, sign);
+            assert_eq!(e.radii.x, e.radii.y);
+            assert_eq!(e.radii.y, e.radii.z);
+            // Tangent to the triangle at its centroid, on the side its normals face: the
+            // sphere's normal there is the face's, and a corner at distance s from the
+            // centroid lies s²/2R off it (the radius R is what the normals' lean asks).
+            assert!(e.normal(centroid).dot(face) > 1.0 - 1e-9);
+            for p in points {
+                let (d, s) = (e.radial_distance(p), p.distance(centroid));
+                assert!(
+                    d.abs() <= 0.51 * s * s / e.radii.x,
+                    "{p}: {d}, radius {}",
+                    e.radii.x
+                );
+            }
+        }
+        // Nine samples or more are not a speck's.
+        let many: Vec<DVec3> = (0..MIN_ELLIPSOID_SAMPLES)
+            .map(|i| DVec3::new(i as f64, (i * i) as f64, 1.0) * 0.01)
+            .collect();
+        let up = vec![DVec3::Z; many.len()];
+        let flat = vec![0.0; many.len()];
+        let input = FitInput::new(&many, &up, &flat).unwrap();
+        assert!(fit_tangent_sphere(&input, &FitOptions::surface(&scale)).is_none());
+    }
 
     #[test]
     fn local_gradients_match_finite_differences() {
