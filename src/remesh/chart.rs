@@ -404,6 +404,27 @@ impl SphereEdges {
         SphereEdges { edges }
     }
 
+    /// Whether the shorter great-circle arc from `p` to `q` (unit vectors) crosses an edge.
+    fn crossed_by(&self, p: DVec3, q: DVec3) -> bool {
+        let Some(m) = p.cross(q).try_normalize() else {
+            return false;
+        };
+        let within = |s: DVec3, a: DVec3, b: DVec3, n: DVec3| {
+            a.cross(s).dot(n) >= 0.0 && s.cross(b).dot(n) >= 0.0
+        };
+        self.edges.iter().any(|&(a, b, n)| {
+            let Some(n) = n else {
+                return false;
+            };
+            let Some(x) = m.cross(n).try_normalize() else {
+                return false;
+            };
+            [x, -x]
+                .into_iter()
+                .any(|s| within(s, p, q, m) && within(s, a, b, n))
+        })
+    }
+
     /// Every `step`-th edge (the nearest of them is no nearer than the nearest of all).
     fn every(&self, step: usize) -> SphereEdges {
         SphereEdges {
@@ -618,8 +639,17 @@ fn choose_pole(ellipsoid: &Ellipsoid, loops: &[Vec<DVec3>]) -> Option<(DVec3, f6
             .filter(|&(s, _)| s > best_score)
             .collect();
         moves.sort_by(|a, b| b.0.total_cmp(&a.0));
+        // A move never crosses the boundary: the test `accept` makes (the sign of the
+        // region's area in the chart) reads the straight edges of the plane, images of
+        // circles through the pole rather than of the great-circle arcs, and beside a loop
+        // whose edges are longer than the pole's distance to it the two disagree. From
+        // inside a triangular hole the search walked out through an edge into the circle
+        // through the hole's corners, where the straight triangle still has the hole's
+        // orientation: the region (an ellipsoid with one face of an icosphere missing) was
+        // charted as its hole, one triangle turned over.
         match moves
             .into_iter()
+            .filter(|&(_, c)| !all.crossed_by(best, c))
             .find_map(|(s, c)| accept(c).map(|d| (s, c, d)))
         {
             Some(found) => (best_score, best, best_distance) = found,
