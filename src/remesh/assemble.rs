@@ -23,7 +23,7 @@
 //! The tolerance's bounding box is that of the boundary points and of the whole-ellipsoid
 //! regions (the part of the output the file pins down before any interior is meshed).
 
-use super::chart::{Projection, RegionChart};
+use super::chart::{PoleWalk, Projection, RegionChart};
 use super::refine::{refine_arcs, Prune, RefineSettings};
 use super::subdivide::subdivide;
 use super::surface::{Lift, RegionSurface};
@@ -153,6 +153,7 @@ impl Prepared {
             areas: &self.areas,
             projection: Projection::Closest,
             radial_where_untangled: false,
+            pole_walk: PoleWalk::Free,
             leave_out: false,
         }
     }
@@ -337,7 +338,10 @@ fn assemble_unsubdivided(
     // the fitted ellipsoids meet far from the stored boundary); both pruned everywhere (a
     // kept ear can leave a triangle in both regions; not made when that prunes nothing
     // more); the stored arcs as they are (pruning can shortcut a corner across a
-    // neighbouring arc); and the same without untangling. A clean mesh ends the search;
+    // neighbouring arc); and the same without untangling; each with the projections
+    // below; last, the first with every chart's pole kept from crossing the boundary
+    // (PoleWalk::Uncrossed: a region that is its ellipsoid but for a small hole can
+    // otherwise be charted as its hole). A clean mesh ends the search;
     // otherwise the best mesh is kept (the fewest regions left out, then sound topology,
     // then the fewest degenerate and flipped triangles, then the earliest), else the last
     // error.
@@ -381,16 +385,23 @@ fn assemble_unsubdivided(
         (!radial || *untangle)
             && (attempt.prune != Prune::All || (projection == Projection::Closest && !radial))
     });
-    let mut attempts: Vec<_> = attempts.collect();
+    // Last, the first attempt with each chart's pole kept from crossing the boundary
+    // (PoleWalk::Uncrossed): it mends charts the free walk turns into their holes, but
+    // changes some that were sound.
+    let mut attempts: Vec<_> = attempts.map(|(p, a)| (p, PoleWalk::Free, a)).collect();
+    if let Some(first) = treatments.first() {
+        attempts.push(((Projection::Closest, false), PoleWalk::Uncrossed, first));
+    }
     if leave_out {
         // Meshing every attempt with regions left out would cost a whole mesh each: only
         // those whose charts fail for the fewest regions are meshed.
         let mut counts: Vec<(usize, usize)> = Vec::new();
-        for (i, &((projection, radial_where_untangled), (attempt, untangle))) in
+        for (i, &((projection, radial_where_untangled), pole_walk, (attempt, untangle))) in
             attempts.iter().enumerate()
         {
             plan.projection = projection;
             plan.radial_where_untangled = radial_where_untangled;
+            plan.pole_walk = pole_walk;
             if let Ok((faults, true)) = plan.faults(attempt, *untangle) {
                 counts.push((faults.len(), i));
             }
@@ -402,9 +413,10 @@ fn assemble_unsubdivided(
             .map(|&(_, i)| attempts[i])
             .collect();
     }
-    for ((projection, radial_where_untangled), (attempt, untangle)) in attempts {
+    for ((projection, radial_where_untangled), pole_walk, (attempt, untangle)) in attempts {
         plan.projection = projection;
         plan.radial_where_untangled = radial_where_untangled;
+        plan.pole_walk = pole_walk;
         let meshed = plan.mesh(attempt, *untangle);
         *made += usize::from(!matches!(meshed, Ok(None)));
         match meshed {
@@ -442,6 +454,8 @@ struct Plan<'a> {
     /// With untangling, a region whose loops cross in its chart and do not along the rays
     /// from its ellipsoid's centre is charted that way instead of untangled.
     radial_where_untangled: bool,
+    /// How each chart's pole is placed.
+    pole_walk: PoleWalk,
     /// A region whose chart or triangulation fails is left out (a hole, counted in
     /// [`MeshCheck::omitted_regions`]) instead of ending the attempt.
     leave_out: bool,
@@ -574,6 +588,7 @@ impl Plan<'_> {
                 &refined.points,
                 self.projection,
                 self.radial_where_untangled,
+                self.pole_walk,
             );
         }
         if self.radial_where_untangled && projections.iter().all(|&p| p == self.projection) {
@@ -649,6 +664,7 @@ impl Plan<'_> {
                     &stand_in,
                     &loop_points,
                     projection_onto(&stand_in, ellipsoid, projection),
+                    self.pole_walk,
                 )
             });
             let Some(chart) = noted(chart, faults.as_deref_mut())? else {
@@ -719,6 +735,7 @@ fn untangle(
     points: &[DVec3],
     projection: Projection,
     radial_where_crossing: bool,
+    walk: PoleWalk,
 ) -> (Vec<KnownChart>, Vec<Projection>) {
     // Regions whose loops changed since they were last looked at: the others would find
     // the same crossings, whose drops were refused.
@@ -734,8 +751,15 @@ fn untangle(
             }
             let before = drop.len();
             let crossings;
-            (charts[r], crossings) =
-                region_crossings(r as u32, rep, chains, points, projections[r], &mut drop);
+            (charts[r], crossings) = region_crossings(
+                r as u32,
+                rep,
+                chains,
+                points,
+                projections[r],
+                walk,
+                &mut drop,
+            );
             // Untangling drops boundary points until the loops stop crossing, down to a
             // triangle when a whole loop folds (the closest points of a boundary deep
             // inside a thin ellipsoid jump between its sides: a bunny's ear became one
@@ -749,6 +773,7 @@ fn untangle(
                     chains,
                     points,
                     Projection::Radial,
+                    walk,
                     &mut radial_drop,
                 );
                 if radial.is_some() && radial_crossings == 0 {
@@ -800,6 +825,7 @@ fn region_crossings(
     chains: &[Vec<u32>],
     points: &[DVec3],
     projection: Projection,
+    walk: PoleWalk,
     drop: &mut Vec<(u32, usize)>,
 ) -> (KnownChart, usize) {
     let (Some(e), Some(cycles)) = (
@@ -849,6 +875,7 @@ fn region_crossings(
         &surface,
         &loop_points,
         projection_onto(&surface, e, projection),
+        walk,
     ) else {
         return (None, 0);
     };
@@ -1100,8 +1127,14 @@ impl Piece {
                     .collect()
             })
             .collect();
-        let chart =
-            RegionChart::with_projection(self.region, &sphere, &loops, Projection::Closest).ok()?;
+        let chart = RegionChart::with_projection(
+            self.region,
+            &sphere,
+            &loops,
+            Projection::Closest,
+            PoleWalk::Free,
+        )
+        .ok()?;
         // Interior points go along the rays from the point of view onto the ellipsoid.
         let lift = Lift::FromPoint {
             origin,

@@ -76,6 +76,28 @@ pub enum Projection {
     NormalOnto(Ellipsoid),
 }
 
+/// How [`choose_pole`]'s pattern search may move the pole away from the boundary.
+///
+/// It accepts a pole when the region's loops enclose a positive area in its chart, whose
+/// straight edges are images of circles through the pole, not of the great-circle arcs
+/// between the points; beside a loop whose edges are longer than the pole's distance to it
+/// the two disagree. From inside a triangular hole the search walked out through an edge
+/// into the circle through the hole's corners, where the straight triangle keeps the
+/// hole's orientation: the region (an ellipsoid with one face of an icosphere missing) was
+/// charted as its hole, one triangle turned over. Kept from crossing the boundary, the
+/// search also changes charts that were sound (one of the small meshes' 48 files written
+/// without the encoder's check, clean in its fifth meshing attempt, was not in any): the
+/// decoder tries it last ([`super::assemble::assemble`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PoleWalk {
+    /// Any move that keeps the pole outside the region by the chart's test.
+    #[default]
+    Free,
+    /// Only moves along which no boundary edge lies (a move no longer than the pole's
+    /// clearance is one).
+    Uncrossed,
+}
+
 impl RegionChart {
     /// The chart of region `region` on `ellipsoid`, bounded by `loops`: closed polylines of
     /// boundary points near the ellipsoid (mapped to the unit sphere by
@@ -100,15 +122,23 @@ impl RegionChart {
         ellipsoid: &Ellipsoid,
         loops: &[Vec<DVec3>],
     ) -> Result<RegionChart, RemeshError> {
-        RegionChart::with_projection(region, ellipsoid, loops, Projection::Closest)
+        RegionChart::with_projection(
+            region,
+            ellipsoid,
+            loops,
+            Projection::Closest,
+            PoleWalk::Free,
+        )
     }
 
-    /// [`RegionChart::new`] with the boundary points mapped to the surface by `projection`.
+    /// [`RegionChart::new`] with the boundary points mapped to the surface by `projection`
+    /// and the pole placed with `walk`.
     pub fn with_projection(
         region: u32,
         ellipsoid: &Ellipsoid,
         loops: &[Vec<DVec3>],
         projection: Projection,
+        walk: PoleWalk,
     ) -> Result<RegionChart, RemeshError> {
         let fail = |what: &'static str| RemeshError::Region { region, what };
         if !ellipsoid.is_valid() {
@@ -135,7 +165,7 @@ impl RegionChart {
         if sphere_loops.is_empty() {
             return Ok(probe);
         }
-        let (pole, clearance) = choose_pole(ellipsoid, &sphere_loops).ok_or(fail(
+        let (pole, clearance) = choose_pole(ellipsoid, &sphere_loops, walk).ok_or(fail(
             "no pole outside the region (its boundary loops enclose nothing)",
         ))?;
         let mut chart = RegionChart {
@@ -577,7 +607,11 @@ impl Ord for Ranked {
 /// Candidates are ranked by their distance to a subsample of the boundary (all of it up to
 /// [`SCORING_POINTS`] points); a candidate is accepted only if it is outside the region and
 /// at least [`MIN_CLEARANCE`] from the whole boundary.
-fn choose_pole(ellipsoid: &Ellipsoid, loops: &[Vec<DVec3>]) -> Option<(DVec3, f64)> {
+fn choose_pole(
+    ellipsoid: &Ellipsoid,
+    loops: &[Vec<DVec3>],
+    walk: PoleWalk,
+) -> Option<(DVec3, f64)> {
     let coarse = SphereEdges::new(&decimate_loops(loops, SCORING_POINTS));
     let all = SphereEdges::new(loops);
     let score = |c: DVec3| coarse.distance(c);
@@ -639,17 +673,12 @@ fn choose_pole(ellipsoid: &Ellipsoid, loops: &[Vec<DVec3>]) -> Option<(DVec3, f6
             .filter(|&(s, _)| s > best_score)
             .collect();
         moves.sort_by(|a, b| b.0.total_cmp(&a.0));
-        // A move never crosses the boundary: the test `accept` makes (the sign of the
-        // region's area in the chart) reads the straight edges of the plane, images of
-        // circles through the pole rather than of the great-circle arcs, and beside a loop
-        // whose edges are longer than the pole's distance to it the two disagree. From
-        // inside a triangular hole the search walked out through an edge into the circle
-        // through the hole's corners, where the straight triangle still has the hole's
-        // orientation: the region (an ellipsoid with one face of an icosphere missing) was
-        // charted as its hole, one triangle turned over.
+        // (A move no longer than the pole's clearance cannot reach an edge.)
+        let allowed =
+            |c: DVec3| walk == PoleWalk::Free || step < best_distance || !all.crossed_by(best, c);
         match moves
             .into_iter()
-            .filter(|&(_, c)| !all.crossed_by(best, c))
+            .filter(|&(_, c)| allowed(c))
             .find_map(|(s, c)| accept(c).map(|d| (s, c, d)))
         {
             Some(found) => (best_score, best, best_distance) = found,
@@ -1106,5 +1135,44 @@ mod tests {
             inside += usize::from(plain(q));
         }
         assert!(inside > 2000 && inside < 18_000);
+    }
+
+    /// A region that is its ellipsoid but for a small triangular hole (a hundredth of a
+    /// radian to a tenth across, as a face of a finely tessellated mesh): kept from
+    /// crossing the boundary, the pole stays in the hole and the chart holds the rest.
+    #[test]
+    fn a_pole_kept_from_crossing_the_boundary_stays_in_a_small_hole() {
+        let e = Ellipsoid {
+            center: DVec3::new(0.2, -0.1, 0.3),
+            rotation: DQuat::from_rotation_y(0.4),
+            radii: DVec3::new(1.0, 0.6, 0.8),
+            sign: Sign::Positive,
+        };
+        let axis = DVec3::new(0.3, 1.0, -0.2).normalize();
+        let (t1, t2) = axis.any_orthonormal_pair();
+        for size in [0.01, 0.04, 0.1] {
+            // An obtuse triangle, region on the left seen from outside: clockwise about
+            // the axis.
+            let corners: Vec<DVec3> = [(0.0, 1.0), (2.2, 0.3), (4.0, 1.2)]
+                .iter()
+                .map(|&(angle, r): &(f64, f64)| {
+                    let (sin, cos) = angle.sin_cos();
+                    (axis + size * r * (t1 * cos - t2 * sin)).normalize()
+                })
+                .collect();
+            let hole: Vec<DVec3> = corners.iter().map(|&u| e.from_unit_sphere(u)).collect();
+            let chart = RegionChart::with_projection(
+                0,
+                &e,
+                &[hole],
+                Projection::Closest,
+                PoleWalk::Uncrossed,
+            )
+            .unwrap();
+            let inside_hole = corners.iter().sum::<DVec3>().normalize();
+            assert!(!chart.contains(e.from_unit_sphere(inside_hole)), "{size}");
+            assert!(chart.contains(e.from_unit_sphere(-axis)), "{size}");
+            assert!(chart.contains(e.from_unit_sphere(t1)), "{size}");
+        }
     }
 }
