@@ -333,15 +333,7 @@ pub fn fit_tangent_sphere(input: &FitInput<'_>, options: &FitOptions) -> Option<
         .try_normalize()?;
     // The samples' plane (through three or more points not on a line), facing the way
     // their normals do; else their mean normal.
-    let mut cov = [[0.0; 3]; 3];
-    for &(w, p, _) in &samples {
-        let d = p - centroid;
-        for (i, row) in cov.iter_mut().enumerate() {
-            for (j, v) in row.iter_mut().enumerate() {
-                *v += w * d[i] * d[j];
-            }
-        }
-    }
+    let cov = scatter(samples.iter().map(|&(w, p, _)| (w, p)), centroid);
     let (values, axes) = eigen_symmetric(cov);
     let normal = if values[1] > 1e-6 * values[0] && values[0] > 0.0 {
         let n = axes.z_axis;
@@ -693,7 +685,6 @@ impl Canonical {
     /// The weighted centroid (the canonical origin) and principal axes (section 4), radii
     /// √3·σ (exact for the uniform sphere), floored at 5% of the largest.
     fn principal_axes(&self) -> Params {
-        let mut cov = [[0.0; 3]; 3];
         let mut total = 0.0;
         let mut mean = DVec3::ZERO;
         for s in &self.samples {
@@ -701,14 +692,7 @@ impl Canonical {
             total += s.w;
         }
         mean /= total;
-        for s in &self.samples {
-            let d = s.p - mean;
-            for (i, row) in cov.iter_mut().enumerate() {
-                for (j, v) in row.iter_mut().enumerate() {
-                    *v += s.w * d[i] * d[j];
-                }
-            }
-        }
+        let mut cov = scatter(self.samples.iter().map(|s| (s.w, s.p)), mean);
         for row in cov.iter_mut() {
             for v in row.iter_mut() {
                 *v /= total;
@@ -1192,6 +1176,23 @@ fn residual_gradients(q: DVec3, r: DVec3) -> LocalTerms {
         h_q: h * lnh_q,
         h_l: h * lnh_l,
     }
+}
+
+/// The scatter matrix Σ w·(p − centre)(p − centre)ᵀ of weighted points.
+pub(crate) fn scatter(
+    points: impl IntoIterator<Item = (f64, DVec3)>,
+    centre: DVec3,
+) -> [[f64; 3]; 3] {
+    let mut m = [[0.0; 3]; 3];
+    for (w, p) in points {
+        let d = p - centre;
+        for (i, row) in m.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v += w * d[i] * d[j];
+            }
+        }
+    }
+    m
 }
 
 /// Eigen-decomposition of a symmetric 3×3 matrix by cyclic Jacobi rotations: eigenvalues in

@@ -62,7 +62,7 @@
 use super::{
     Cut, Progress, ProxyMetric, RegionCount, SegmentError, SegmentOptions, Segmentation, Split,
 };
-use crate::ellipsoid::fit::eigen_symmetric;
+use crate::ellipsoid::fit::{eigen_symmetric, scatter};
 use crate::mesh::Mesh;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -1030,15 +1030,7 @@ impl<M: ProxyMetric> Lloyd<'_, M> {
         // Across the longest principal axis of the centroids, at the median.
         let median_cut = || -> (Vec<f64>, f64) {
             let mean = centroids.iter().copied().sum::<DVec3>() / centroids.len() as f64;
-            let mut cov = [[0.0; 3]; 3];
-            for &c in &centroids {
-                let d = c - mean;
-                for (i, row) in cov.iter_mut().enumerate() {
-                    for (j, v) in row.iter_mut().enumerate() {
-                        *v += d[i] * d[j];
-                    }
-                }
-            }
+            let cov = scatter(centroids.iter().map(|&c| (1.0, c)), mean);
             // Signed toward the coordinate axis the covariance stretches most, so that the
             // side that becomes the new region does not hang on the eigensolver's sign.
             let axis = eigen_symmetric(cov).1.x_axis;

@@ -2,7 +2,7 @@
 
 use super::{Mode, SegmentError, SegmentOptions};
 use crate::ellipsoid::fit::{
-    eigen_symmetric, fit_ellipsoid, fit_tangent_sphere, FitInput, FitOptions, SignChoice,
+    eigen_symmetric, fit_ellipsoid, fit_tangent_sphere, scatter, FitInput, FitOptions, SignChoice,
     MIN_ELLIPSOID_SAMPLES,
 };
 use crate::ellipsoid::hull::convex_hull_volume;
@@ -132,16 +132,7 @@ pub fn speck_faces(mesh: &Mesh) -> Vec<bool> {
             .filter_map(|&v| positions.get(v as usize).copied())
             .collect();
         let centroid = points.iter().sum::<DVec3>() / points.len().max(1) as f64;
-        let mut cov = [[0.0; 3]; 3];
-        for p in &points {
-            let d = *p - centroid;
-            for (i, row) in cov.iter_mut().enumerate() {
-                for (j, v) in row.iter_mut().enumerate() {
-                    *v += d[i] * d[j];
-                }
-            }
-        }
-        let (values, _) = eigen_symmetric(cov);
+        let (values, _) = eigen_symmetric(scatter(points.iter().map(|&p| (1.0, p)), centroid));
         values[2] <= SPECK_THICKNESS * SPECK_THICKNESS * values[0]
     };
     let specks: Vec<bool> = vertices
