@@ -174,6 +174,17 @@ pub enum SignChoice {
     Only(Sign),
 }
 
+impl SignChoice {
+    /// The signs to fit, positive first.
+    fn signs(self) -> &'static [Sign] {
+        match self {
+            SignChoice::Both => &[Sign::Positive, Sign::Negative],
+            SignChoice::Only(Sign::Positive) => &[Sign::Positive],
+            SignChoice::Only(Sign::Negative) => &[Sign::Negative],
+        }
+    }
+}
+
 /// Which fresh starts to try; all by default. Exposed so that tests and benchmarks can
 /// measure what each contributes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -234,6 +245,15 @@ pub struct FitOptions {
 }
 
 impl FitOptions {
+    /// [`FitOptions::scale`] when it is a positive finite length, else 1.
+    fn unit(&self) -> f64 {
+        if self.scale.is_finite() && self.scale > 0.0 {
+            self.scale
+        } else {
+            1.0
+        }
+    }
+
     /// Surface fitting with the paper's default weights (section 2) for a model of the given
     /// scale.
     pub fn surface(scale: &super::MeshScale) -> FitOptions {
@@ -281,11 +301,7 @@ pub fn fit_ellipsoid(input: &FitInput<'_>, options: &FitOptions) -> Fit {
     let Some(problem) = Canonical::new(input, options) else {
         return degenerate_fit(input, options);
     };
-    let signs: &[Sign] = match options.signs {
-        SignChoice::Both => &[Sign::Positive, Sign::Negative],
-        SignChoice::Only(Sign::Positive) => &[Sign::Positive],
-        SignChoice::Only(Sign::Negative) => &[Sign::Negative],
-    };
+    let signs = options.signs.signs();
     let mut best: Option<Fit> = None;
     for &sign in signs {
         let Some(params) = problem.solve(sign) else {
@@ -345,11 +361,7 @@ pub fn fit_tangent_sphere(input: &FitInput<'_>, options: &FitOptions) -> Option<
     } else {
         mean_normal
     };
-    let scale = if options.scale.is_finite() && options.scale > 0.0 {
-        options.scale
-    } else {
-        1.0
-    };
+    let scale = options.unit();
     let (min_radius, max_radius) = (options.min_radius * scale, options.max_radius * scale);
     let spread = samples
         .iter()
@@ -359,11 +371,7 @@ pub fn fit_tangent_sphere(input: &FitInput<'_>, options: &FitOptions) -> Option<
     if !(centroid.is_finite() && spread.is_finite() && spread < max_radius) {
         return None;
     }
-    let signs: &[Sign] = match options.signs {
-        SignChoice::Both => &[Sign::Positive, Sign::Negative],
-        SignChoice::Only(Sign::Positive) => &[Sign::Positive],
-        SignChoice::Only(Sign::Negative) => &[Sign::Negative],
-    };
+    let signs = options.signs.signs();
     let mut radii = Vec::new();
     let mut r = spread;
     while r < max_radius {
@@ -422,11 +430,7 @@ fn degenerate_fit(input: &FitInput<'_>, options: &FitOptions) -> Fit {
     } else {
         finite.iter().sum::<DVec3>() / finite.len() as f64
     };
-    let scale = if options.scale.is_finite() && options.scale > 0.0 {
-        options.scale
-    } else {
-        1.0
-    };
+    let scale = options.unit();
     let mut ellipsoid = input
         .start
         .unwrap_or_else(|| Ellipsoid::sphere(center, 0.1 * scale));
