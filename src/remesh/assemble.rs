@@ -480,13 +480,10 @@ impl Plan<'_> {
             return Ok(None);
         };
         let mut omitted: Vec<u32> = faults.iter().map(|f| f.region).collect();
-        // Meshed on the ellipsoids with the boundary's offsets blended in near the boundary,
-        // over bands at least as wide as the target edge length; a region left out loses
-        // all its pieces (both halves of a whole ellipsoid).
+        // A region left out loses all its pieces (both halves of a whole ellipsoid).
         let mut pieces: Vec<Piece> = pieces
             .into_iter()
             .filter(|p| !omitted.contains(&p.region))
-            .map(|p| p.with_offsets(self.spacing))
             .collect();
         loop {
             if pieces.is_empty() && !omitted.is_empty() {
@@ -495,7 +492,7 @@ impl Plan<'_> {
                     what: "no region could be meshed",
                 });
             }
-            match self.triangulate_and_join(positions.clone(), &pieces) {
+            match self.triangulate_and_join(positions.clone(), &mut pieces) {
                 Err(RemeshError::Region { region, .. })
                     if self.leave_out && pieces.iter().any(|p| p.region == region) =>
                 {
@@ -518,7 +515,7 @@ impl Plan<'_> {
     fn triangulate_and_join(
         &self,
         positions: Vec<DVec3>,
-        pieces: &[Piece],
+        pieces: &mut [Piece],
     ) -> Result<Remeshed, RemeshError> {
         let Plan {
             rep,
@@ -610,7 +607,7 @@ impl Plan<'_> {
                 };
                 pieces.extend(halves.map(|mut p| {
                     p.area = area / 2.0;
-                    p
+                    p.with_offsets(spacing)
                 }));
                 continue;
             }
@@ -678,7 +675,9 @@ impl Plan<'_> {
                 _ => Lift::Radial(*ellipsoid),
             };
             let surface = RegionSurface::lifted(chart, lift);
-            pieces.push(Piece::new(region, surface, &loops, &pool.positions, area));
+            pieces.push(
+                Piece::new(region, surface, &loops, &pool.positions, area).with_offsets(spacing),
+            );
         }
         if pool.positions.len() > options.max_vertices {
             return Err(RemeshError::TooManyVertices {
@@ -687,7 +686,7 @@ impl Plan<'_> {
             });
         }
 
-        settle_charts(rep, &mut pieces, spacing / 4.0, faults)?;
+        settle_charts(rep, &mut pieces, spacing, faults)?;
         Ok(Some((pool.positions, pieces)))
     }
 }
@@ -1044,6 +1043,9 @@ struct Piece {
     global: Vec<u32>,
     /// Estimated area (model units²).
     area: f64,
+    /// Its boundary-only adaptive triangulation, once [`settle_charts`] built it (taken by
+    /// [`triangulate_adaptive`], which would otherwise build the same again).
+    start: Option<AdaptiveTriangulation>,
 }
 
 impl Piece {
@@ -1078,6 +1080,7 @@ impl Piece {
             loops,
             global,
             area,
+            start: None,
         }
     }
 
@@ -1145,6 +1148,7 @@ impl Piece {
             boundary: self.boundary.clone(),
             loops: self.loops.clone(),
             global: self.global.clone(),
+            start: None,
             ..*self
         })
     }
@@ -1159,25 +1163,38 @@ impl Piece {
     }
 }
 
-/// Replaces the chart of every piece whose boundary-only triangulation fails by the view
-/// from beneath it, if that one triangulates; otherwise returns the first failure.
-/// With `faults`, every piece that fails is noted there instead.
+/// Builds every piece's boundary-only adaptive triangulation (kept in [`Piece::start`]),
+/// replacing the chart of a piece whose triangulation fails by the view from beneath it, if
+/// that one triangulates; otherwise returns the first failure. With `faults`, every piece
+/// that fails is noted there instead. `spacing` is the target edge length (the offsets'
+/// band; a quarter of it the minimum spacing of vertex addition).
 fn settle_charts(
     rep: &Representation,
     pieces: &mut [Piece],
-    min_spacing: f64,
+    spacing: f64,
     mut faults: Option<&mut Vec<RegionFault>>,
 ) -> Result<(), RemeshError> {
+    let min_spacing = spacing / 4.0;
     for piece in pieces.iter_mut() {
-        let Err(error) = AdaptiveTriangulation::new(&piece.input(), min_spacing) else {
-            continue;
+        let error = match AdaptiveTriangulation::new(&piece.input(), min_spacing) {
+            Ok(start) => {
+                piece.start = Some(start);
+                continue;
+            }
+            Err(error) => error,
         };
         let other = rep
             .ellipsoids
             .get(piece.region as usize)
-            .and_then(|e| piece.view_from_beneath(e));
-        match other {
-            Some(other) if AdaptiveTriangulation::new(&other.input(), min_spacing).is_ok() => {
+            .and_then(|e| piece.view_from_beneath(e))
+            .map(|p| p.with_offsets(spacing));
+        let started = other.and_then(|mut other| {
+            let start = AdaptiveTriangulation::new(&other.input(), min_spacing).ok()?;
+            other.start = Some(start);
+            Some(other)
+        });
+        match started {
+            Some(other) => {
                 *piece = other;
             }
             _ => match faults.as_deref_mut() {
@@ -1299,16 +1316,20 @@ fn split_whole(
 /// Adaptive scheme: the budget shared by error through a max-heap of the pieces' worst
 /// errors (section 5.3).
 fn triangulate_adaptive(
-    pieces: &[Piece],
+    pieces: &mut [Piece],
     boundary_vertices: usize,
     budget: usize,
     tolerance: Option<f64>,
     spacing: f64,
 ) -> Result<Vec<RegionMesh>, RemeshError> {
-    let inputs: Vec<RegionInput<'_>> = pieces.iter().map(Piece::input).collect();
-    let mut tris = inputs
-        .iter()
-        .map(|input| AdaptiveTriangulation::new(input, spacing / 4.0))
+    // The triangulations settle_charts built (the same as built here: same input, same
+    // spacing), else built again (a retry after a region was left out).
+    let mut tris = pieces
+        .iter_mut()
+        .map(|piece| match piece.start.take() {
+            Some(start) => Ok(start),
+            None => AdaptiveTriangulation::new(&piece.input(), spacing / 4.0),
+        })
         .collect::<Result<Vec<_>, _>>()?;
     let worst_of = |tris: &[AdaptiveTriangulation]| -> BinaryHeap<Worst> {
         tris.iter()

@@ -287,22 +287,29 @@ impl OffsetBlend {
         let centre = cell_of(x, self.side);
         // Cells are sorted by key, so the three cells along z of each (x, y) column are one
         // run of entries: nine searches instead of 27.
-        let mut near: Vec<u32> = Vec::new();
-        for dx in -1..=1 {
-            for dy in -1..=1 {
-                let (cx, cy) = (centre[0] + dx, centre[1] + dy);
-                let first = [cx, cy, centre[2] - 1];
-                let from = self.cells.partition_point(|(k, _)| *k < first);
-                near.extend(
-                    self.cells[from..]
-                        .iter()
-                        .take_while(|(k, _)| k[0] == cx && k[1] == cy && k[2] <= centre[2] + 1)
-                        .map(|&(_, s)| s),
-                );
-            }
+        let mut runs = [(0, 0); 9];
+        for (run, (dx, dy)) in runs
+            .iter_mut()
+            .zip((-1..=1).flat_map(|dx| (-1..=1).map(move |dy| (dx, dy))))
+        {
+            let (cx, cy) = (centre[0] + dx, centre[1] + dy);
+            let from = self
+                .cells
+                .partition_point(|(k, _)| *k < [cx, cy, centre[2] - 1]);
+            let to = from
+                + self.cells[from..]
+                    .iter()
+                    .take_while(|(k, _)| k[0] == cx && k[1] == cy && k[2] <= centre[2] + 1)
+                    .count();
+            *run = (from, to);
         }
-        if near.is_empty() {
+        let count: usize = runs.iter().map(|(from, to)| to - from).sum();
+        if count == 0 {
             return 0.0;
+        }
+        let mut near: Vec<u32> = Vec::with_capacity(count);
+        for &(from, to) in &runs {
+            near.extend(self.cells[from..to].iter().map(|&(_, s)| s));
         }
         near.sort_unstable();
         near.dedup();

@@ -197,38 +197,36 @@ impl RegionCdt {
             return Err(err("its ellipsoid is degenerate"));
         }
 
-        let mut cdt = Cdt::new();
-        let mut handles: HashMap<u32, FixedVertexHandle> = HashMap::new();
-        let mut plane_sum = DVec2::ZERO;
-        let mut hint: Option<FixedVertexHandle> = None;
-        let mut planes: HashMap<u32, DVec2> = HashMap::new();
+        // Per boundary point (clean_loops checked the indices): its unit-sphere direction
+        // and chart position, found once (the closest point is iterative), and its handle.
+        let n = input.boundary.len();
+        let mut directions: Vec<DVec3> = vec![DVec3::NAN; n];
+        let mut planes: Vec<DVec2> = vec![DVec2::NAN; n];
+        let mut handles: Vec<Option<FixedVertexHandle>> = vec![None; n];
         for &i in loops.iter().flatten() {
-            // clean_loops checked the index.
-            let point = input
-                .boundary
-                .get(i as usize)
-                .copied()
-                .unwrap_or(DVec3::NAN);
+            let i = i as usize;
+            let point = input.boundary[i];
             if !point.is_finite() {
                 return Err(err("a boundary point is not finite"));
             }
-            let q = chart.to_plane(point);
+            let u = chart.to_sphere(point);
+            let q = chart.sphere_to_plane(u);
             if !is_valid_plane_point(q) {
                 return Err(err("a boundary point has no valid position in the chart"));
             }
-            planes.insert(i, q);
+            directions[i] = u;
+            planes[i] = q;
         }
-        let plane_of = |i: u32| planes.get(&i).copied().unwrap_or(DVec2::NAN);
+        let mut cdt = Cdt::new();
+        let mut plane_sum = DVec2::ZERO;
+        let mut hint: Option<FixedVertexHandle> = None;
+        let plane_of = |i: u32| planes[i as usize];
         for lp in &loops {
             for (k, &i) in lp.iter().enumerate() {
-                if handles.contains_key(&i) {
+                if handles[i as usize].is_some() {
                     continue;
                 }
-                let point = input
-                    .boundary
-                    .get(i as usize)
-                    .copied()
-                    .unwrap_or(DVec3::NAN);
+                let point = input.boundary[i as usize];
                 let q = plane_of(i);
                 plane_sum += q;
                 let previous = lp[(k + lp.len() - 1) % lp.len()];
@@ -249,7 +247,7 @@ impl RegionCdt {
                 if cdt.num_vertices() == before {
                     return Err(err("two boundary points map to the same chart position"));
                 }
-                handles.insert(i, handle);
+                handles[i as usize] = Some(handle);
                 hint = Some(handle);
             }
         }
@@ -260,7 +258,7 @@ impl RegionCdt {
         for lp in &loops {
             for (k, &a) in lp.iter().enumerate() {
                 let b = lp[(k + 1) % lp.len()];
-                let (Some(&ha), Some(&hb)) = (handles.get(&a), handles.get(&b)) else {
+                let (Some(ha), Some(hb)) = (handles[a as usize], handles[b as usize]) else {
                     return Err(err("a boundary loop refers to a missing point"));
                 };
                 if cdt.exists_constraint(ha, hb) {
@@ -298,8 +296,7 @@ impl RegionCdt {
         let count = cdt.num_vertices().max(1) as f64;
         let flip = !plane_is_counter_clockwise(chart, plane_sum / count)
             .ok_or_else(|| err("its chart is degenerate"))?;
-        let direction =
-            |i: u32| chart.to_sphere(input.boundary.get(i as usize).copied().unwrap_or(DVec3::X));
+        let direction = |i: u32| directions[i as usize];
         let segments = loops
             .iter()
             .flat_map(|lp| {
@@ -323,14 +320,14 @@ impl RegionCdt {
     fn check_sides(
         &self,
         loops: &[Vec<u32>],
-        handles: &HashMap<u32, FixedVertexHandle>,
+        handles: &[Option<FixedVertexHandle>],
         region: u32,
     ) -> Result<(), RemeshError> {
         let (mut agree, mut disagree) = (0usize, 0usize);
         for lp in loops {
             for (k, &a) in lp.iter().enumerate() {
                 let b = lp[(k + 1) % lp.len()];
-                let (Some(&ha), Some(&hb)) = (handles.get(&a), handles.get(&b)) else {
+                let (Some(ha), Some(hb)) = (handles[a as usize], handles[b as usize]) else {
                     continue;
                 };
                 let Some(edge) = self.cdt.get_edge_from_neighbors(ha, hb) else {
