@@ -27,7 +27,9 @@
 //! Triangles are oriented once per region: the chart's handedness against the ellipsoid's
 //! signed normal is measured on a small plane triangle (it is the same everywhere, the map
 //! being conformal). On decoded files an ear of three consecutive boundary points, which lie
-//! off the ellipsoid, can still face against the normal; nothing here can change it.
+//! off the ellipsoid, can still face against the normal, as can a face vertex addition
+//! would not split; where swapping its diagonal with an inside neighbour turns fewer faces,
+//! the output has the other diagonal ([`RegionCdt::swap_turned`], the classic edge flip).
 
 use super::chart::RegionChart;
 use super::surface::RegionSurface;
@@ -38,7 +40,7 @@ use spade::{
     validate_coordinate, ConstrainedDelaunayTriangulation, HasPosition, Point2, Triangulation,
 };
 use std::cmp::Ordering;
-use std::collections::{BinaryHeap, HashMap, VecDeque};
+use std::collections::{BinaryHeap, HashMap, HashSet, VecDeque};
 
 /// What one region's triangulation starts from.
 #[derive(Debug, Clone, Copy)]
@@ -398,12 +400,34 @@ impl RegionCdt {
 
     /// The inside faces as triangles, oriented with the ellipsoid's signed normal.
     fn finish(self) -> RegionMesh {
-        let triangles = self
-            .cdt
-            .inner_faces()
-            .filter(|f| *f.data())
+        self.finish_knowing(None)
+    }
+
+    /// [`RegionCdt::finish`], told which faces may be turned (by their corners; the others
+    /// are not), if that is known: vertex addition tests every face it makes.
+    fn finish_knowing(self, turned: Option<&[[FixedVertexHandle; 3]]>) -> RegionMesh {
+        let mut faces: Vec<[Vertex; 3]> = Vec::with_capacity(self.cdt.num_inner_faces());
+        let mut slot = vec![usize::MAX; self.cdt.num_all_faces()];
+        for f in self.cdt.inner_faces().filter(|f| *f.data()) {
+            slot[f.fix().index()] = faces.len();
+            faces.push(f.vertices().map(|v| *v.data()));
+        }
+        let suspects = turned.map(|turned| {
+            turned
+                .iter()
+                .filter_map(|&[a, b, c]| {
+                    let edge = self.cdt.get_edge_from_neighbors(a, b)?;
+                    let face = edge.face().as_inner()?;
+                    (edge.next().to().fix() == c).then(|| slot[face.fix().index()])
+                })
+                .filter(|&i| i != usize::MAX)
+                .collect()
+        });
+        self.swap_turned(&mut faces, suspects);
+        let triangles = faces
+            .into_iter()
             .map(|f| {
-                let [a, b, c] = f.vertices().map(|v| v.data().corner);
+                let [a, b, c] = f.map(|v| v.corner);
                 if self.flip {
                     [a, c, b]
                 } else {
@@ -417,6 +441,110 @@ impl RegionCdt {
         }
     }
 }
+
+impl RegionCdt {
+    /// Mends faces turned against the ellipsoid that vertex addition left (ears of boundary
+    /// points, faces it would not split) by swapping the diagonal of a turned face and an
+    /// inside neighbour where that turns fewer of the two (the classic edge flip). A swap is
+    /// made only where both new faces are counter-clockwise in the plane, so the
+    /// triangulation stays planar in the chart, and neither is much smaller than the smaller
+    /// old face ([`SWAP_MIN_AREA_SHARE`]); boundary edges are never swapped. Each swap
+    /// lowers the count of turned faces, so the passes end. `suspects`, if given, are the
+    /// only faces that may be turned (else each face is tested).
+    fn swap_turned(&self, faces: &mut [[Vertex; 3]], suspects: Option<Vec<usize>>) {
+        let turned = |t: &[Vertex; 3]| usize::from(self.is_turned(t.map(|v| v.point)));
+        let mut count: Vec<usize> = match suspects {
+            Some(suspects) => {
+                let mut count = vec![0; faces.len()];
+                for i in suspects {
+                    count[i] = turned(&faces[i]);
+                }
+                count
+            }
+            None => faces.iter().map(turned).collect(),
+        };
+        if count.iter().all(|&c| c == 0) {
+            return;
+        }
+        // Directed edge (by corners) → the face that runs it.
+        let mut by_edge: HashMap<(Corner, Corner), usize> = HashMap::new();
+        for (f, t) in faces.iter().enumerate() {
+            for k in 0..3 {
+                by_edge.insert((t[k].corner, t[(k + 1) % 3].corner), f);
+            }
+        }
+        let boundary: HashSet<(Corner, Corner)> = self
+            .cdt
+            .undirected_edges()
+            .filter(|e| e.is_constraint_edge())
+            .flat_map(|e| {
+                let [a, b] = e.vertices().map(|v| v.data().corner);
+                [(a, b), (b, a)]
+            })
+            .collect();
+        let plane_area =
+            |[a, b, c]: [Vertex; 3]| 0.5 * (b.plane() - a.plane()).perp_dot(c.plane() - a.plane());
+        let area =
+            |[a, b, c]: [Vertex; 3]| 0.5 * (b.point - a.point).cross(c.point - a.point).length();
+        let mut changed = true;
+        while changed {
+            changed = false;
+            for f in 0..faces.len() {
+                if count[f] == 0 {
+                    continue;
+                }
+                for k in 0..3 {
+                    let t = faces[f];
+                    let (u, v, w) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+                    if boundary.contains(&(u.corner, v.corner)) {
+                        continue;
+                    }
+                    let Some(&g) = by_edge.get(&(v.corner, u.corner)) else {
+                        continue;
+                    };
+                    let Some(x) = faces[g]
+                        .into_iter()
+                        .find(|c| c.corner != u.corner && c.corner != v.corner)
+                    else {
+                        continue;
+                    };
+                    // (u, v, w) and (v, u, x) become (w, u, x) and (x, v, w).
+                    let new = [[w, u, x], [x, v, w]];
+                    let old_area = area(t).min(area(faces[g]));
+                    let old_plane = plane_area(t).min(plane_area(faces[g]));
+                    let sound = new.iter().all(|&n| {
+                        plane_area(n) > SWAP_MIN_AREA_SHARE * old_plane
+                            && area(n) > SWAP_MIN_AREA_SHARE * old_area
+                    });
+                    let now = [turned(&new[0]), turned(&new[1])];
+                    if !sound || now[0] + now[1] >= count[f] + count[g] {
+                        continue;
+                    }
+                    for old in [t, faces[g]] {
+                        for j in 0..3 {
+                            by_edge.remove(&(old[j].corner, old[(j + 1) % 3].corner));
+                        }
+                    }
+                    for (face, n) in [(f, new[0]), (g, new[1])] {
+                        for j in 0..3 {
+                            by_edge.insert((n[j].corner, n[(j + 1) % 3].corner), face);
+                        }
+                        faces[face] = n;
+                    }
+                    count[f] = now[0];
+                    count[g] = now[1];
+                    changed = true;
+                    break;
+                }
+            }
+        }
+    }
+}
+
+/// A diagonal swap ([`RegionCdt::swap_turned`]) must leave both faces at least this share of
+/// the smaller old face's area, in the chart and in space: a turned face is not traded for
+/// a sliver.
+const SWAP_MIN_AREA_SHARE: f64 = 0.25;
 
 /// The loops with their indices checked, consecutive repeats merged, and at least three
 /// distinct points each.
@@ -537,6 +665,8 @@ pub struct AdaptiveTriangulation {
     inner: RegionCdt,
     heap: BinaryHeap<Candidate>,
     min_spacing: f64,
+    /// Every face found turned when it was made, by its corners (it may be gone since).
+    turned: Vec<[FixedVertexHandle; 3]>,
 }
 
 impl AdaptiveTriangulation {
@@ -559,6 +689,7 @@ impl AdaptiveTriangulation {
             inner: RegionCdt::new(input)?,
             heap: BinaryHeap::new(),
             min_spacing,
+            turned: Vec::new(),
         };
         this.push_inside_faces();
         Ok(this)
@@ -641,7 +772,7 @@ impl AdaptiveTriangulation {
 
     /// The region's triangles.
     pub fn finish(self) -> RegionMesh {
-        self.inner.finish()
+        self.inner.finish_knowing(Some(&self.turned))
     }
 
     /// Pops stale entries so that the top (what [`Self::worst_error`] reports) is a face.
@@ -740,10 +871,16 @@ impl AdaptiveTriangulation {
         let face = self.inner.cdt.face(face);
         let vertices = face.vertices();
         let corners = vertices.map(|v| *v.data());
+        let [pa, pb, pc] = corners.map(|c| c.point);
+        // Every face vertex addition makes comes here (the faces an insertion makes are its
+        // new vertex's star): the turned ones are noted for RegionCdt::swap_turned.
+        let turned = self.inner.is_turned([pa, pb, pc]);
+        if turned {
+            self.turned.push(vertices.map(|v| v.fix()));
+        }
         let Some((plane, point)) = self.split_point(&corners) else {
             return;
         };
-        let [pa, pb, pc] = corners.map(|c| c.point);
         let centroid = (pa + pb + pc) / 3.0;
         let error = point.distance(centroid);
         if !error.is_finite() {
@@ -751,11 +888,7 @@ impl AdaptiveTriangulation {
         }
         // A face turned against its ellipsoid (the test the assembled mesh is checked with)
         // is the worst there is: it is split before any other, whatever the tolerance.
-        let error = if self.inner.is_turned([pa, pb, pc]) {
-            f64::INFINITY
-        } else {
-            error
-        };
+        let error = if turned { f64::INFINITY } else { error };
         let q = to_point(plane);
         if !face
             .adjacent_edges()
@@ -1218,5 +1351,129 @@ mod tests {
             spaced.interior.len()
         );
         assert_eq!(run(0.0).interior.len(), 500);
+    }
+
+    /// Quadrilateral regions on a sphere, corners raised or sunk at random: wherever the
+    /// chart's Delaunay diagonal leaves a face turned against the sphere and the other
+    /// diagonal would turn neither face (and keep both faces' areas), the region comes out
+    /// with the other diagonal; no region comes out with more turned faces than before.
+    #[test]
+    fn a_turned_face_is_mended_by_swapping_its_diagonal() {
+        let e = Ellipsoid {
+            radii: DVec3::new(0.4, 2.0, 1.0),
+            ..sphere(Sign::Positive)
+        };
+        let chart = RegionChart::with_pole(&e, DVec3::Z);
+        let surface = RegionSurface::new(chart.clone());
+        let turned = |t: [DVec3; 3]| {
+            let n = (t[1] - t[0]).cross(t[2] - t[0]);
+            n.dot(e.normal((t[0] + t[1] + t[2]) / 3.0)) < 0.0
+        };
+        let area = |t: [DVec3; 3]| (t[1] - t[0]).cross(t[2] - t[0]).length();
+        let plane_area = |t: [DVec2; 3]| (t[1] - t[0]).perp_dot(t[2] - t[0]);
+        let mut rng = SplitMix64::new(11);
+        let (mut mendable, mut before_total, mut after_total) = (0, 0, 0);
+        for _ in 0..10_000 {
+            let boundary: Vec<DVec3> = (0..4)
+                .map(|k| {
+                    let angle = k as f64 * std::f64::consts::FRAC_PI_2 + rng.range_f64(-0.5, 0.5);
+                    let x = chart.from_plane(DVec2::from_angle(angle) * rng.range_f64(0.2, 2.0));
+                    x + 0.5 * rng.unit_vector()
+                })
+                .collect();
+            let plane: Vec<DVec2> = boundary.iter().map(|&p| chart.to_plane(p)).collect();
+            let loops = vec![vec![0, 1, 2, 3]];
+            let input = RegionInput {
+                region: 0,
+                surface: &surface,
+                boundary: &boundary,
+                loops: &loops,
+            };
+            let Ok(cdt) = RegionCdt::new(&input) else {
+                continue;
+            };
+            if cdt.cdt.num_vertices() != 4 {
+                continue;
+            }
+            let delaunay: Vec<[usize; 3]> = cdt
+                .cdt
+                .inner_faces()
+                .filter(|f| *f.data())
+                .map(|f| {
+                    f.vertices().map(|v| match v.data().corner {
+                        Corner::Boundary(i) => i as usize,
+                        Corner::Interior(_) => unreachable!(),
+                    })
+                })
+                .collect();
+            if delaunay.len() != 2 {
+                continue;
+            }
+            // Corners counter-clockwise in the plane, oriented as finish orients them.
+            let flip = cdt.flip;
+            let points = |[a, b, c]: [usize; 3]| {
+                if flip { [a, c, b] } else { [a, b, c] }.map(|i| boundary[i])
+            };
+            let before = delaunay.iter().filter(|&&t| turned(points(t))).count();
+            // The other diagonal: the one between the corners not on the Delaunay one.
+            let shared: Vec<usize> = (0..4)
+                .filter(|i| delaunay.iter().all(|t| t.contains(i)))
+                .collect();
+            let apart: Vec<usize> = (0..4).filter(|i| !shared.contains(i)).collect();
+            let other = [
+                [apart[0], apart[1], shared[0]],
+                [apart[0], apart[1], shared[1]],
+            ]
+            .map(|[a, b, c]| {
+                // Counter-clockwise in the plane, as the chart's faces are.
+                if plane_area([a, b, c].map(|i| plane[i])) > 0.0 {
+                    [a, b, c]
+                } else {
+                    [a, c, b]
+                }
+            });
+            let out = cdt.finish();
+            let after = out
+                .triangles
+                .iter()
+                .filter(|t| {
+                    turned(t.map(|c| match c {
+                        Corner::Boundary(i) => boundary[i as usize],
+                        Corner::Interior(_) => unreachable!(),
+                    }))
+                })
+                .count();
+            assert!(after <= before);
+            before_total += before;
+            after_total += after;
+            let old_area = delaunay
+                .iter()
+                .map(|&t| area(points(t)))
+                .fold(f64::MAX, f64::min);
+            let old_plane = delaunay
+                .iter()
+                .map(|&t| plane_area(t.map(|i| plane[i])))
+                .fold(f64::MAX, f64::min);
+            let sound = other.iter().all(|&t| {
+                area(points(t)) > 0.3 * old_area
+                    && plane_area(t.map(|i| plane[i])) > 0.3 * old_plane
+            });
+            // The other diagonal lies inside the quadrilateral (it is convex in the plane).
+            let quad: f64 = delaunay
+                .iter()
+                .map(|&t| plane_area(t.map(|i| plane[i])))
+                .sum();
+            let split: f64 = other.iter().map(|&t| plane_area(t.map(|i| plane[i]))).sum();
+            let convex = (split - quad).abs() <= 1e-9 * quad;
+            if before > 0 && convex && sound && other.iter().all(|&t| !turned(points(t))) {
+                assert_eq!(after, 0, "{boundary:?}");
+                mendable += 1;
+            }
+        }
+        assert!(mendable >= 10, "{mendable} mendable regions");
+        assert!(
+            after_total < before_total,
+            "{after_total} of {before_total}"
+        );
     }
 }
