@@ -1174,7 +1174,7 @@ fn settle_charts(
     spacing: f64,
     mut faults: Option<&mut Vec<RegionFault>>,
 ) -> Result<(), RemeshError> {
-    let min_spacing = spacing / 4.0;
+    let min_spacing = min_spacing(spacing);
     for piece in pieces.iter_mut() {
         let error = match AdaptiveTriangulation::new(&piece.input(), min_spacing) {
             Ok(start) => {
@@ -1313,6 +1313,13 @@ fn split_whole(
     Ok([half(north_loop)?, half(south_loop)?])
 }
 
+/// The minimum spacing of vertex addition for a target edge length `spacing`: a quarter of
+/// it. [`settle_charts`] and [`triangulate_adaptive`] must agree on it, since the latter
+/// takes over the triangulations the former built.
+fn min_spacing(spacing: f64) -> f64 {
+    spacing / 4.0
+}
+
 /// Adaptive scheme: the budget shared by error through a max-heap of the pieces' worst
 /// errors (section 5.3).
 fn triangulate_adaptive(
@@ -1328,7 +1335,7 @@ fn triangulate_adaptive(
         .iter_mut()
         .map(|piece| match piece.start.take() {
             Some(start) => Ok(start),
-            None => AdaptiveTriangulation::new(&piece.input(), spacing / 4.0),
+            None => AdaptiveTriangulation::new(&piece.input(), min_spacing(spacing)),
         })
         .collect::<Result<Vec<_>, _>>()?;
     let worst_of = |tris: &[AdaptiveTriangulation]| -> BinaryHeap<Worst> {
@@ -1341,7 +1348,7 @@ fn triangulate_adaptive(
     // Interior vertices the boundary-only triangulations already hold (sliver ears split).
     let mut total =
         boundary_vertices + tris.iter().map(AdaptiveTriangulation::added).sum::<usize>();
-    let mut min_spacing = spacing / 4.0;
+    let mut min_spacing = min_spacing(spacing);
     let mut relaxations = 0;
     while total < budget {
         let Some(worst) = heap.pop() else {
