@@ -186,11 +186,21 @@ pub struct OffsetBlend {
     /// ([`WEIGHT_REACH`] times the widest band), their weights tapered to zero at it.
     reach: f64,
     /// Side of the cubic cells the segments are bucketed by: at least `reach` /
-    /// [`CELL_FILL`].
+    /// [`CELL_FILL`] (more where the columns below would outnumber
+    /// [`MAX_COLUMNS_PER_SEGMENT`] per segment).
     side: f64,
-    /// The segments by the cells they pass through, sorted by cell: a point's segments lie
-    /// in its cell and the 26 around it.
-    cells: Vec<([i64; 3], u32)>,
+    /// The segments by the cells they pass through, column by column (a column: the cells
+    /// with the same x and y), each column sorted by z then segment: the cell's z and the
+    /// segment. A point's segments lie in its cell and the 26 around it.
+    cells: Vec<(i64, u32)>,
+    /// The columns the segments' cells span, x then y, from `first_column`: where each one
+    /// starts in `cells` (and, last, the end), so that a point's nine columns are found
+    /// without a search.
+    column_starts: Vec<u32>,
+    /// The x and y of the lowest column.
+    first_column: [i64; 2],
+    /// How many columns along y.
+    columns_y: i64,
 }
 
 /// Most cell entries of a blend beyond four per segment: a boundary far longer than its
@@ -199,6 +209,17 @@ const MAX_CELL_ENTRIES: f64 = (1u64 << 20) as f64;
 
 /// How far, in widest bands, a segment still weighs in a point's height.
 const WEIGHT_REACH: f64 = 2.0;
+
+/// Most columns of cells ([`OffsetBlend::column_starts`]) per boundary segment: a
+/// boundary that spans far more than its bands (a large region with thin offsets) gets
+/// larger cells instead of more columns.
+const MAX_COLUMNS_PER_SEGMENT: f64 = 64.0;
+
+/// Columns any blend may have, whatever its segment count.
+const MIN_COLUMN_CAP: f64 = 4096.0;
+
+/// Most columns of any blend (16 MiB of column starts).
+const MAX_COLUMN_CAP: f64 = (1u64 << 22) as f64;
 
 /// The reach over a cell's side. A segment's point within the reach of a query is within
 /// a quarter cell of a sample the segment was bucketed by (samples a quarter cell apart),
@@ -244,11 +265,32 @@ impl OffsetBlend {
         let max_band = (BLEND_REACH * longest).max(min_band);
         let reach = WEIGHT_REACH * max_band;
         let length: f64 = segments.iter().map(|s| s.foot[0].distance(s.foot[1])).sum();
-        let side = (reach / CELL_FILL).max(4.0 * length / MAX_CELL_ENTRIES);
-        if !(side.is_finite() && side > 0.0) {
+        let (lo, hi) = feet.iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), &f| (lo.min(f), hi.max(f)),
+        );
+        let cap =
+            (MAX_COLUMNS_PER_SEGMENT * segments.len() as f64).clamp(MIN_COLUMN_CAP, MAX_COLUMN_CAP);
+        let columns_at =
+            |side: f64| ((hi.x - lo.x) / side + 2.0).floor() * ((hi.y - lo.y) / side + 2.0).floor();
+        let mut side = (reach / CELL_FILL).max(4.0 * length / MAX_CELL_ENTRIES);
+        // Larger cells gather more segments beyond the reach, which the height skips: the
+        // result does not change. A few steps close to the cap, then a side that meets it
+        // surely (each factor of the count at most √cap).
+        for _ in 0..4 {
+            let columns = columns_at(side);
+            if columns <= cap {
+                break;
+            }
+            side *= (columns / cap).sqrt().max(1.01);
+        }
+        if columns_at(side) > cap {
+            side = side.max((hi.x - lo.x).max(hi.y - lo.y) / (cap.sqrt() - 2.0));
+        }
+        if !(side.is_finite() && side > 0.0 && columns_at(side) <= cap) {
             return OffsetBlend::default();
         }
-        let mut cells = Vec::new();
+        let mut keyed = Vec::new();
         for (index, s) in segments.iter().enumerate() {
             let [a, b] = s.foot;
             // Samples a quarter cell apart.
@@ -257,21 +299,61 @@ impl OffsetBlend {
             for k in 0..=steps {
                 let key = cell_of(a.lerp(b, k as f64 / steps as f64), side);
                 if last != Some(key) {
-                    cells.push((key, index as u32));
+                    keyed.push((key, index as u32));
                     last = Some(key);
                 }
             }
         }
-        cells.sort_unstable();
-        cells.dedup();
+        keyed.sort_unstable();
+        keyed.dedup();
+        // Every key lies within the feet's box, so within the columns counted above.
+        let (first, last) = (cell_of(lo, side), cell_of(hi, side));
+        let columns_y = last[1] - first[1] + 1;
+        let columns = ((last[0] - first[0] + 1) * columns_y) as usize;
+        let mut column_starts = Vec::with_capacity(columns + 1);
+        let mut next = 0;
+        for column in 0..columns as i64 {
+            let (x, y) = (first[0] + column / columns_y, first[1] + column % columns_y);
+            next += keyed[next..]
+                .iter()
+                .take_while(|(k, _)| (k[0], k[1]) < (x, y))
+                .count();
+            column_starts.push(next as u32);
+        }
+        column_starts.push(keyed.len() as u32);
         OffsetBlend {
             segments,
             min_band,
             max_band,
             reach,
             side,
-            cells,
+            cells: keyed.into_iter().map(|(k, s)| (k[2], s)).collect(),
+            column_starts,
+            first_column: [first[0], first[1]],
+            columns_y,
         }
+    }
+
+    /// The entries of column (`x`, `y`) with z from `z - 1` to `z + 1`: a range of
+    /// `cells` (empty outside the columns).
+    fn run(&self, x: i64, y: i64, z: i64) -> (usize, usize) {
+        let (cx, cy) = (x - self.first_column[0], y - self.first_column[1]);
+        if cx < 0 || cy < 0 || cy >= self.columns_y {
+            return (0, 0);
+        }
+        let column = (cx * self.columns_y + cy) as usize;
+        let (Some(&from), Some(&to)) = (
+            self.column_starts.get(column),
+            self.column_starts.get(column + 1),
+        ) else {
+            return (0, 0);
+        };
+        let (from, to) = (from as usize, to as usize);
+        let entries = &self.cells[from..to];
+        (
+            from + entries.partition_point(|&(k, _)| k < z - 1),
+            from + entries.partition_point(|&(k, _)| k <= z + 1),
+        )
     }
 
     /// The height at `x`, a point on the ellipsoid: the heights of the boundary segments
@@ -285,23 +367,13 @@ impl OffsetBlend {
             return 0.0;
         }
         let centre = cell_of(x, self.side);
-        // Cells are sorted by key, so the three cells along z of each (x, y) column are one
-        // run of entries: nine searches instead of 27.
+        // The three cells along z of each (x, y) column are one run of entries.
         let mut runs = [(0, 0); 9];
         for (run, (dx, dy)) in runs
             .iter_mut()
             .zip((-1..=1).flat_map(|dx| (-1..=1).map(move |dy| (dx, dy))))
         {
-            let (cx, cy) = (centre[0] + dx, centre[1] + dy);
-            let from = self
-                .cells
-                .partition_point(|(k, _)| *k < [cx, cy, centre[2] - 1]);
-            let to = from
-                + self.cells[from..]
-                    .iter()
-                    .take_while(|(k, _)| k[0] == cx && k[1] == cy && k[2] <= centre[2] + 1)
-                    .count();
-            *run = (from, to);
+            *run = self.run(centre[0] + dx, centre[1] + dy, centre[2]);
         }
         let count: usize = runs.iter().map(|(from, to)| to - from).sum();
         if count == 0 {
@@ -403,6 +475,30 @@ mod tests {
         assert!(worst <= 1.5 / BLEND_REACH + 1e-3, "slope {worst}");
     }
 
+    /// The height at `x` by the formula of [`OffsetBlend::height`] summed over every
+    /// segment, without the cells.
+    fn brute_height(b: &OffsetBlend, x: DVec3) -> f64 {
+        let (mut nearest, mut weights, mut sum) = (f64::INFINITY, 0.0, 0.0);
+        for s in &b.segments {
+            let [p, q] = s.foot;
+            let t = ((x - p).dot(q - p) / (q - p).length_squared()).clamp(0.0, 1.0);
+            let d = p.lerp(q, t).distance(x);
+            if d < b.reach {
+                nearest = f64::min(nearest, d);
+                let taper = 1.0 - (d / b.reach).powi(2);
+                let w = (q - p).length() * taper * taper / d.powi(3);
+                weights += w;
+                sum += w * (s.height[0] + (s.height[1] - s.height[0]) * t);
+            }
+        }
+        if nearest >= b.max_band || weights == 0.0 {
+            return 0.0;
+        }
+        let h = sum / weights;
+        let s = (nearest / (BLEND_REACH * h.abs()).max(b.min_band)).min(1.0);
+        h * (1.0 - s * s * (3.0 - 2.0 * s))
+    }
+
     /// The cell lookup finds every segment within the reach: the height equals the same
     /// formula summed over all segments, at points around a wavy loop of short and long
     /// segments.
@@ -420,27 +516,6 @@ mod tests {
             .collect();
         let lp: Vec<u32> = (0..60).filter(|k| k % 9 != 4).collect();
         let b = OffsetBlend::new(&feet, &heights, &[lp], 0.01);
-        let brute = |x: DVec3| {
-            let (mut nearest, mut weights, mut sum) = (f64::INFINITY, 0.0, 0.0);
-            for s in &b.segments {
-                let [p, q] = s.foot;
-                let t = ((x - p).dot(q - p) / (q - p).length_squared()).clamp(0.0, 1.0);
-                let d = p.lerp(q, t).distance(x);
-                if d < b.reach {
-                    nearest = f64::min(nearest, d);
-                    let taper = 1.0 - (d / b.reach).powi(2);
-                    let w = (q - p).length() * taper * taper / d.powi(3);
-                    weights += w;
-                    sum += w * (s.height[0] + (s.height[1] - s.height[0]) * t);
-                }
-            }
-            if nearest >= b.max_band || weights == 0.0 {
-                return 0.0;
-            }
-            let h = sum / weights;
-            let s = (nearest / (BLEND_REACH * h.abs()).max(b.min_band)).min(1.0);
-            h * (1.0 - s * s * (3.0 - 2.0 * s))
-        };
         let mut blended = 0;
         for _ in 0..5000 {
             let x = DVec3::new(
@@ -448,7 +523,7 @@ mod tests {
                 2.4 * rng.next_f64() - 1.2,
                 0.4 * rng.next_f64() - 0.2,
             );
-            let (h, expected) = (b.height(x), brute(x));
+            let (h, expected) = (b.height(x), brute_height(&b, x));
             assert!(
                 (h - expected).abs() <= 1e-12 * expected.abs().max(1e-3),
                 "{x}: {h} vs {expected}"
@@ -456,6 +531,41 @@ mod tests {
             blended += usize::from(h != 0.0);
         }
         assert!(blended > 100, "{blended}");
+    }
+
+    /// A boundary far wider than its bands (a large region with thin offsets) would need
+    /// millions of columns of cells as wide as the reach: the cells are made larger instead,
+    /// and the heights do not change.
+    #[test]
+    fn a_boundary_far_wider_than_its_bands_gets_larger_cells_and_the_same_heights() {
+        let mut rng = crate::rng::SplitMix64::new(5);
+        let n = 40;
+        let feet: Vec<DVec3> = (0..n)
+            .map(|k| {
+                let t = std::f64::consts::TAU * k as f64 / n as f64;
+                DVec3::new(t.cos(), t.sin(), 0.0)
+            })
+            .collect();
+        let heights: Vec<f64> = (0..n).map(|k| 1e-4 * (1 + k % 3) as f64).collect();
+        let b = OffsetBlend::new(&feet, &heights, &[(0..n as u32).collect()], 1e-4);
+        // Cells as wide as the reach (0.0018 / 0.75) would need (2 / 0.0024)² columns.
+        assert!(b.side > 10.0 * b.reach / CELL_FILL, "side {}", b.side);
+        assert!(b.column_starts.len() as f64 <= MIN_COLUMN_CAP + 1.0);
+        let mut blended = 0;
+        for _ in 0..4000 {
+            // Near the polygon, within a few bands of it.
+            let k = (rng.next_f64() * n as f64) as usize % n;
+            let on = feet[k].lerp(feet[(k + 1) % n], rng.next_f64());
+            let off = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) - 0.5;
+            let x = on + 0.002 * off;
+            let (h, expected) = (b.height(x), brute_height(&b, x));
+            assert!(
+                (h - expected).abs() <= 1e-9 * expected.abs() + 1e-18,
+                "{x}: {h} vs {expected}"
+            );
+            blended += usize::from(h != 0.0);
+        }
+        assert!(blended > 1000, "{blended}");
     }
 
     #[test]
