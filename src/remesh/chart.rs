@@ -467,13 +467,19 @@ impl SphereEdges {
     /// The minimum is taken over squared chord lengths, which grow with the angle, and
     /// turned into an angle once: no inverse trigonometry per edge.
     fn distance(&self, c: DVec3) -> f64 {
-        self.distance_beyond(c, f64::NEG_INFINITY)
+        self.distance_beyond(c, f64::NEG_INFINITY, 0).0
     }
 
     /// [`Self::distance`] if it is more than `floor`; otherwise some value at most `floor`,
     /// found without scanning every edge (the scan stops at the first edge clearly closer
-    /// than `floor`).
-    fn distance_beyond(&self, c: DVec3, floor: f64) -> f64 {
+    /// than `floor`). With it, the edge the scan ended on: the nearest, or the one that
+    /// stopped it.
+    ///
+    /// The scan starts at edge `start` and wraps round. Edges come in order along their
+    /// loops, so the edge nearest to one point is a good start for a point near it: if that
+    /// point's scan is to stop, it stops at once (the pattern search in [`choose_pole`]
+    /// tries eight moves around its pole each step, most of them no farther out).
+    fn distance_beyond(&self, c: DVec3, floor: f64, start: usize) -> (f64, usize) {
         // The chord² of `floor`, lowered a little so that rounding never stops a scan whose
         // distance would come out above `floor`.
         let stop = if floor > 0.0 {
@@ -482,17 +488,24 @@ impl SphereEdges {
         } else {
             f64::NEG_INFINITY
         };
+        let start = if start < self.edges.len() { start } else { 0 };
+        let (before, from) = self.edges.split_at(start);
         let mut best = f64::INFINITY;
-        for &(a, b, n) in &self.edges {
-            best = best.min(arc_chord_squared(c, a, b, n));
+        let mut nearest = start;
+        for (k, &(a, b, n)) in from.iter().chain(before).enumerate() {
+            let d = arc_chord_squared(c, a, b, n);
+            if d < best {
+                best = d;
+                nearest = (start + k) % self.edges.len();
+            }
             if best < stop {
-                return f64::NEG_INFINITY;
+                return (f64::NEG_INFINITY, nearest);
             }
         }
         if best.is_finite() {
-            2.0 * (0.5 * best.max(0.0).sqrt()).min(1.0).asin()
+            (2.0 * (0.5 * best.max(0.0).sqrt()).min(1.0).asin(), nearest)
         } else {
-            best
+            (best, nearest)
         }
     }
 }
@@ -659,18 +672,23 @@ fn choose_pole(
         }
     }
     let (mut best_score, mut best, mut best_distance) = first?;
+    // The coarse edge nearest to the pole: where the moves' scans start.
+    let mut near = coarse.distance_beyond(best, f64::NEG_INFINITY, 0).1;
     // Pattern search: move the pole away from the boundary while it improves.
     let mut step = 0.5 * (4.0 * std::f64::consts::PI / POLE_CANDIDATES as f64).sqrt();
     for _ in 0..40 {
         let (t1, t2) = best.any_orthonormal_pair();
-        let mut moves: Vec<(f64, DVec3)> = (0..8)
+        let mut moves: Vec<(f64, DVec3, usize)> = (0..8)
             .filter_map(|k| {
                 let (s, c) = (k as f64 * std::f64::consts::FRAC_PI_4).sin_cos();
                 let dir = t1 * c + t2 * s;
                 (best * step.cos() + dir * step.sin()).try_normalize()
             })
-            .map(|c| (coarse.distance_beyond(c, best_score), c))
-            .filter(|&(s, _)| s > best_score)
+            .map(|c| {
+                let (score, nearest) = coarse.distance_beyond(c, best_score, near);
+                (score, c, nearest)
+            })
+            .filter(|&(s, _, _)| s > best_score)
             .collect();
         moves.sort_by(|a, b| b.0.total_cmp(&a.0));
         // (A move no longer than the pole's clearance cannot reach an edge.)
@@ -678,10 +696,12 @@ fn choose_pole(
             |c: DVec3| walk == PoleWalk::Free || step < best_distance || !all.crossed_by(best, c);
         match moves
             .into_iter()
-            .filter(|&(_, c)| allowed(c))
-            .find_map(|(s, c)| accept(c).map(|d| (s, c, d)))
+            .filter(|&(_, c, _)| allowed(c))
+            .find_map(|(s, c, nearest)| accept(c).map(|d| (s, c, d, nearest)))
         {
-            Some(found) => (best_score, best, best_distance) = found,
+            Some((s, c, d, nearest)) => {
+                (best_score, best, best_distance, near) = (s, c, d, nearest)
+            }
             None => {
                 step *= 0.5;
                 if step < 1e-4 {
@@ -838,8 +858,22 @@ mod tests {
                 .flat_map(|l| (0..l.len()).map(move |i| (l[i], l[(i + 1) % l.len()])))
                 .map(|(a, b)| arc_distance(c, a, b))
                 .fold(f64::INFINITY, f64::min);
-            let fast = SphereEdges::new(&loops).distance(c);
+            let edges = SphereEdges::new(&loops);
+            let fast = edges.distance(c);
             assert!((fast - reference).abs() < 1e-12, "{fast} vs {reference}");
+            // Wherever the scan starts: the same distance, and an edge that near (edges
+            // that meet at the nearest point tie), or, below a floor, a value at most the
+            // floor.
+            for start in 0..=edges.edges.len() {
+                let (d, nearest) = edges.distance_beyond(c, f64::NEG_INFINITY, start);
+                assert_eq!(d, fast);
+                let (a, b, _) = edges.edges[nearest];
+                assert!((arc_distance(c, a, b) - fast).abs() < 1e-12);
+                for floor in [0.5 * fast, 2.0 * fast] {
+                    let (d, _) = edges.distance_beyond(c, floor, start);
+                    assert!(if floor < fast { d == fast } else { d <= floor });
+                }
+            }
         }
         // Tiny distances keep their precision.
         let a = DVec3::X;
