@@ -27,7 +27,7 @@ pub use fit::{fit_ellipsoid, Fit, FitInput, FitOptions};
 pub use metric::{vertex_error, MeshScale, Weights};
 
 use crate::synth::EllipsoidSpec;
-use glam::{DQuat, DVec3};
+use glam::{DMat3, DQuat, DVec3};
 use serde::{Deserialize, Serialize};
 
 /// Which side of the ellipsoid's surface represents the mesh (paper, section 2, "Negative
@@ -74,6 +74,27 @@ pub struct Ellipsoid {
     pub radii: DVec3,
     /// Outer or inner surface.
     pub sign: Sign,
+}
+
+/// Which way vectors point against an ellipsoid's signed normal ([`Ellipsoid::normal`]),
+/// without normalising it: the implicit function's gradient, taken in the ellipsoid's own
+/// frame (a matrix, not a quaternion, per point). For sign tests many times over, such as
+/// whether each face of a mesh is turned against the surface.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NormalSide {
+    center: DVec3,
+    to_local: DMat3,
+    /// The sign over the squared radii.
+    weights: DVec3,
+}
+
+impl NormalSide {
+    /// `v` · [`Ellipsoid::normal`]`(p)` times a positive factor (the gradient's length at
+    /// `p`); zero at the centre.
+    pub fn along(&self, p: DVec3, v: DVec3) -> f64 {
+        let x = self.to_local * (p - self.center);
+        (self.to_local * v).dot(x * self.weights)
+    }
 }
 
 /// Below this fraction of the smallest radius a point counts as the centre itself, where the
@@ -243,6 +264,16 @@ impl Ellipsoid {
     /// inward for a negative one (paper, section 2).
     pub fn normal(&self, p: DVec3) -> DVec3 {
         self.sign.factor() * self.outward_normal(p)
+    }
+
+    /// The signed normal's direction as a linear map, for tests that ask only which side of
+    /// the surface a vector points to: see [`NormalSide`].
+    pub fn normal_side(&self) -> NormalSide {
+        NormalSide {
+            center: self.center,
+            to_local: DMat3::from_quat(self.rotation.inverse()),
+            weights: self.sign.factor() / (self.radii * self.radii),
+        }
     }
 
     /// Mean curvature of the outer surface at Π(p), in closed form; positive (+1/r on a
@@ -431,6 +462,44 @@ mod tests {
                 e.sign = Sign::Negative;
                 assert!((e.normal(p) + grad).length() < 1e-12);
                 e.sign = Sign::Positive;
+            }
+        }
+    }
+
+    /// The side test is the signed normal's dot product times the gradient's length, for
+    /// both signs, also on needles (radii 1e-4 against 1e3) and for vectors nearly
+    /// tangent to the surface.
+    #[test]
+    fn normal_side_is_the_normal_times_a_positive_factor() {
+        let mut rng = SplitMix64::new(9);
+        for round in 0..60 {
+            let mut e = random_ellipsoid(&mut rng);
+            if round % 3 == 0 {
+                e.radii = DVec3::new(1e3, 1e-4, rng.range_f64(1e-4, 1.0));
+            }
+            if round % 2 == 0 {
+                e.sign = Sign::Negative;
+            }
+            let side = e.normal_side();
+            for _ in 0..50 {
+                let p = e.from_unit_sphere(rng.unit_vector() * rng.range_f64(0.5, 2.0));
+                let n = e.normal(p);
+                let v = rng.unit_vector();
+                let gradient = e.to_local(p) / (e.radii * e.radii);
+                let expected = v.dot(n) * gradient.length();
+                let got = side.along(p, v);
+                // Both map p into the ellipsoid's frame, to within rounding of |p − c|,
+                // which the weights 1 / r² magnify.
+                let rounding = 1e-13 * (p - e.center).length() / e.radii.min_element().powi(2);
+                assert!(
+                    (got - expected).abs() <= 1e-9 * gradient.length() + rounding,
+                    "{got} vs {expected}"
+                );
+                // Nearly tangent vectors keep their side.
+                let t = (v - v.dot(n) * n).normalize();
+                for lean in [1e-4, -1e-4] {
+                    assert_eq!(side.along(p, t + lean * n) > 0.0, lean > 0.0);
+                }
             }
         }
     }

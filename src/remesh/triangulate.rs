@@ -34,6 +34,7 @@
 use super::chart::RegionChart;
 use super::surface::RegionSurface;
 use super::RemeshError;
+use crate::ellipsoid::NormalSide;
 use glam::{DVec2, DVec3};
 use spade::handles::{FixedFaceHandle, FixedVertexHandle, InnerTag};
 use spade::{
@@ -174,6 +175,8 @@ struct RegionCdt {
     /// Whether a face counter-clockwise in the plane is clockwise about the ellipsoid's
     /// signed normal, so that [`RegionCdt::finish`] must reverse it.
     flip: bool,
+    /// The region's ellipsoid's normal, for [`RegionCdt::is_turned`].
+    side: NormalSide,
     /// The boundary loops' edges as unit-sphere directions (for the parametric scheme).
     segments: Vec<[DVec3; 2]>,
     /// The faces around the last inserted vertex (a buffer reused across insertions).
@@ -305,11 +308,13 @@ impl RegionCdt {
                 (0..lp.len()).map(|k| [direction(lp[k]), direction(lp[(k + 1) % lp.len()])])
             })
             .collect();
+        let side = surface.ellipsoid().normal_side();
         let region_cdt = RegionCdt {
             surface,
             cdt,
             interior: Vec::new(),
             flip,
+            side,
             segments,
             star: Vec::new(),
         };
@@ -388,9 +393,7 @@ impl RegionCdt {
     /// orient it, against the ellipsoid's signed normal at its centroid (the test
     /// [`super::assemble::check_mesh`] applies to the assembled mesh).
     fn is_turned(&self, [a, b, c]: [DVec3; 3]) -> bool {
-        let facing = (b - a)
-            .cross(c - a)
-            .dot(self.surface.ellipsoid().normal((a + b + c) / 3.0));
+        let facing = self.side.along((a + b + c) / 3.0, (b - a).cross(c - a));
         if self.flip {
             facing > 0.0
         } else {
@@ -807,13 +810,14 @@ impl AdaptiveTriangulation {
         plane: DVec2,
         point: (DVec3, f64),
     ) -> bool {
-        let corners = candidate.corners.map(|h| *self.inner.cdt.vertex(h).data());
+        let handles = candidate.corners.map(|h| self.inner.cdt.vertex(h));
+        let corners = handles.each_ref().map(|v| v.data());
         // Never inserted: its index is not used.
         let new = Vertex::interior(plane, point, u32::MAX);
         let edges = [[0, 1], [1, 2], [2, 0]];
         let mut turned = edges
             .iter()
-            .map(|&[i, j]| [corners[i], corners[j], new])
+            .map(|&[i, j]| [corners[i], corners[j], &new])
             .filter(|face| self.inner.is_turned(face.map(|v| v.point)))
             .peekable();
         if turned.peek().is_none() {
@@ -824,7 +828,7 @@ impl AdaptiveTriangulation {
             .map(|&[i, j]| corners[i].point.distance(corners[j].point))
             .fold(0.0, f64::max);
         longest <= STRICT_FACE_SPACINGS * self.min_spacing
-            || turned.any(|face| self.split_point(&face).is_none())
+            || turned.any(|face| self.split_point(face).is_none())
     }
 
     /// Where the face with these corners (counter-clockwise in the plane) is split: the
@@ -832,9 +836,9 @@ impl AdaptiveTriangulation {
     /// smooth over a face; the exact height is taken for the vertex inserted). `None` when
     /// the centroid is not a valid plane point, lies too close to a boundary edge at a corner
     /// ([`BOUNDARY_CLEARANCE`]), or the point too close to a corner (the minimum spacing).
-    fn split_point(&self, corners: &[Vertex; 3]) -> Option<(DVec2, DVec3)> {
+    fn split_point(&self, corners: [&Vertex; 3]) -> Option<(DVec2, DVec3)> {
         let surface = &self.inner.surface;
-        let plane = corners.iter().map(Vertex::plane).sum::<DVec2>() / 3.0;
+        let plane = corners.iter().map(|c| c.plane()).sum::<DVec2>() / 3.0;
         if !is_valid_plane_point(plane) {
             return None;
         }
@@ -870,7 +874,7 @@ impl AdaptiveTriangulation {
     fn push_face(&mut self, face: FixedFaceHandle<InnerTag>) {
         let face = self.inner.cdt.face(face);
         let vertices = face.vertices();
-        let corners = vertices.map(|v| *v.data());
+        let corners = vertices.each_ref().map(|v| v.data());
         let [pa, pb, pc] = corners.map(|c| c.point);
         // Every face vertex addition makes comes here (the faces an insertion makes are its
         // new vertex's star): the turned ones are noted for RegionCdt::swap_turned.
@@ -878,7 +882,7 @@ impl AdaptiveTriangulation {
         if turned {
             self.turned.push(vertices.map(|v| v.fix()));
         }
-        let Some((plane, point)) = self.split_point(&corners) else {
+        let Some((plane, point)) = self.split_point(corners) else {
             return;
         };
         let centroid = (pa + pb + pc) / 3.0;
