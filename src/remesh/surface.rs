@@ -388,6 +388,7 @@ impl OffsetBlend {
         let mut nearest = f64::INFINITY;
         let mut weights = 0.0;
         let mut sum = 0.0;
+        let beyond = self.reach * self.reach * (1.0 + 1e-12);
         for s in near.iter().filter_map(|&i| self.segments.get(i as usize)) {
             let [a, b] = s.foot;
             let ab = b - a;
@@ -397,7 +398,12 @@ impl OffsetBlend {
             } else {
                 0.0
             };
-            let d = (a + ab * t).distance(x);
+            let d2 = (a + ab * t - x).length_squared();
+            // Clearly beyond the reach, without the square root (the cells hold many such).
+            if d2 > beyond {
+                continue;
+            }
+            let d = d2.sqrt();
             let height = s.height[0] + (s.height[1] - s.height[0]) * t;
             if d <= 0.0 {
                 return height;
