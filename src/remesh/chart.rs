@@ -627,9 +627,17 @@ fn choose_pole(
 ) -> Option<(DVec3, f64)> {
     let coarse = SphereEdges::new(&decimate_loops(loops, SCORING_POINTS));
     let all = SphereEdges::new(loops);
+    // Up to SCORING_POINTS boundary points the coarse edges are all of them.
+    let scored_in_full = loops.iter().map(Vec::len).sum::<usize>() <= SCORING_POINTS;
     let score = |c: DVec3| coarse.distance(c);
-    let accept = |c: DVec3| {
-        let exact = all.distance(c);
+    // A candidate with its full coarse score: its distance to the whole boundary if it is
+    // acceptable.
+    let accept = |c: DVec3, score: f64| {
+        let exact = if scored_in_full {
+            score
+        } else {
+            all.distance(c)
+        };
         (exact >= MIN_CLEARANCE && is_outside(ellipsoid, loops, c)).then_some(exact)
     };
     let mut candidates = fibonacci_directions(POLE_CANDIDATES);
@@ -666,7 +674,7 @@ fn choose_pole(
                 bound: false,
                 ..top
             });
-        } else if let Some(d) = accept(c) {
+        } else if let Some(d) = accept(c, top.score) {
             first = Some((top.score, c, d));
             break;
         }
@@ -697,7 +705,7 @@ fn choose_pole(
         match moves
             .into_iter()
             .filter(|&(_, c, _)| allowed(c))
-            .find_map(|(s, c, nearest)| accept(c).map(|d| (s, c, d, nearest)))
+            .find_map(|(s, c, nearest)| accept(c, s).map(|d| (s, c, d, nearest)))
         {
             Some((s, c, d, nearest)) => {
                 (best_score, best, best_distance, near) = (s, c, d, nearest)
