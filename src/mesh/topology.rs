@@ -537,6 +537,88 @@ mod tests {
         assert_eq!(t.component_count(), 2);
     }
 
+    /// Non-manifold vertices by brute force: per vertex, the faces around it joined
+    /// (union–find) across its edges that have exactly two faces; more than one group is
+    /// more than one fan.
+    fn nonmanifold_vertices_by_brute_force(vertex_count: usize, faces: &[[u32; 3]]) -> usize {
+        let edge_faces = |a: u32, b: u32| {
+            faces
+                .iter()
+                .filter(|f| f.contains(&a) && f.contains(&b))
+                .count()
+        };
+        (0..vertex_count as u32)
+            .filter(|&v| {
+                let around: Vec<usize> = (0..faces.len())
+                    .filter(|&f| faces[f].contains(&v))
+                    .collect();
+                let mut group: Vec<usize> = (0..around.len()).collect();
+                fn root(group: &mut [usize], mut i: usize) -> usize {
+                    while group[i] != i {
+                        i = group[i];
+                    }
+                    i
+                }
+                for i in 0..around.len() {
+                    for j in 0..i {
+                        let shared: Vec<u32> = faces[around[i]]
+                            .iter()
+                            .copied()
+                            .filter(|&w| w != v && faces[around[j]].contains(&w))
+                            .collect();
+                        if shared.iter().any(|&w| edge_faces(v, w) == 2) {
+                            let (a, b) = (root(&mut group, i), root(&mut group, j));
+                            group[a] = b;
+                        }
+                    }
+                }
+                let roots: std::collections::BTreeSet<usize> =
+                    (0..around.len()).map(|i| root(&mut group, i)).collect();
+                roots.len() > 1
+            })
+            .count()
+    }
+
+    /// Non-manifold vertices agree with brute force on a closed torus grid with faces taken
+    /// away (fans broken into several) and fins added (edges with three faces).
+    #[test]
+    fn nonmanifold_vertices_agree_with_brute_force() {
+        let mut rng = crate::rng::SplitMix64::new(17);
+        let n = 6u32;
+        let index = |i: u32, j: u32| (i % n) * n + (j % n);
+        for round in 0..40 {
+            let mut faces = Vec::new();
+            for i in 0..n {
+                for j in 0..n {
+                    let (a, b, c, d) = (
+                        index(i, j),
+                        index(i + 1, j),
+                        index(i + 1, j + 1),
+                        index(i, j + 1),
+                    );
+                    faces.push([a, b, c]);
+                    faces.push([a, c, d]);
+                }
+            }
+            let keep = 0.3 + 0.7 * (round as f64 / 40.0);
+            faces.retain(|_| rng.next_f64() < keep);
+            let mut vertex_count = n * n;
+            for _ in 0..round % 4 {
+                if let Some(&[a, b, _]) = faces.get(rng.next_u64() as usize % faces.len().max(1)) {
+                    faces.push([b, a, vertex_count]);
+                    faces.push([a, b, vertex_count + 1]);
+                    vertex_count += 2;
+                }
+            }
+            let t = topo(vertex_count as usize, &faces);
+            assert_eq!(
+                t.nonmanifold_vertex_count(),
+                nonmanifold_vertices_by_brute_force(vertex_count as usize, &faces),
+                "round {round}"
+            );
+        }
+    }
+
     #[test]
     fn flipped_face_is_found_and_fixed() {
         let mut faces = TETRA;
