@@ -32,7 +32,7 @@ use super::triangulate::{
     RegionInput, RegionMesh,
 };
 use super::{RemeshError, RemeshOptions, Remeshed, Scheme};
-use crate::ellipsoid::Ellipsoid;
+use crate::ellipsoid::{Ellipsoid, NormalSide};
 use crate::mesh::Mesh;
 use crate::representation::{Representation, Side};
 use glam::DVec3;
@@ -1785,18 +1785,19 @@ fn face_faults<'a>(
 ) -> impl Iterator<Item = (u32, FaceFault)> + 'a {
     let diagonal = mesh.bounding_box().map_or(0.0, |b| b.diagonal());
     let min_area = DEGENERATE_AREA * diagonal * diagonal;
+    let sides: Vec<NormalSide> = rep.ellipsoids.iter().map(Ellipsoid::normal_side).collect();
     face_regions
         .iter()
         .enumerate()
         .take(mesh.face_count())
         .filter_map(move |(f, &r)| {
-            let area = mesh.face_area(f);
+            let doubled = mesh.face_area_vector(f);
+            let area = 0.5 * doubled.length();
             if area.is_nan() || area <= min_area {
                 return Some((r, FaceFault::Degenerate));
             }
-            let e = rep.ellipsoids.get(r as usize)?;
-            (mesh.face_normal(f).dot(e.normal(mesh.face_centroid(f))) < 0.0)
-                .then_some((r, FaceFault::Flipped))
+            let side = sides.get(r as usize)?;
+            (side.along(mesh.face_centroid(f), doubled) < 0.0).then_some((r, FaceFault::Flipped))
         })
 }
 

@@ -31,6 +31,7 @@
 use super::assemble::{measured, DEGENERATE_AREA};
 use super::refine::project_to_intersection;
 use super::{RemeshError, Remeshed};
+use crate::ellipsoid::{Ellipsoid, NormalSide};
 use crate::mesh::{Mesh, MAX_ELEMENTS};
 use crate::representation::Representation;
 use glam::DVec3;
@@ -123,15 +124,16 @@ fn split_faces(
     // What check_mesh would count: a flipped or degenerate child.
     let diagonal = mesh.bounding_box().map_or(0.0, |b| b.diagonal());
     let min_doubled_area = 2.0 * DEGENERATE_AREA * diagonal * diagonal;
+    let sides: Vec<NormalSide> = rep.ellipsoids.iter().map(Ellipsoid::normal_side).collect();
     let turned = |positions: &[DVec3], split: &[bool], f: usize| {
-        let Some(e) = rep.ellipsoids.get(region_of(f) as usize) else {
+        let Some(side) = sides.get(region_of(f) as usize) else {
             return false;
         };
         let cut = middles[f].map(|m| is_split(split, m).then_some(m));
         children(faces[f], cut).iter().flatten().any(|child| {
             let [p, q, r] = child.map(|v| positions[v as usize]);
             let n = (q - p).cross(r - p);
-            n.length() <= min_doubled_area || n.dot(e.normal((p + q + r) / 3.0)) <= 0.0
+            n.length() <= min_doubled_area || side.along((p + q + r) / 3.0, n) <= 0.0
         })
     };
     // Where a new point turns a child against its ellipsoid (a strongly curved spot, or
