@@ -114,45 +114,45 @@ impl Topology {
     }
 
     /// Counts referenced and non-manifold vertices (more than one fan of faces).
+    ///
+    /// The faces around a vertex are linked across its edges that are manifold, each face
+    /// to at most two others (across its two edges at the vertex): they form paths and
+    /// cycles, one per fan. So the vertex has one fan when the walk from its first face,
+    /// one way round and then the other, reaches all of them.
     fn count_vertices(&mut self, faces: &[[u32; 3]]) {
-        let mut seen: Vec<bool> = Vec::new();
-        let mut stack: Vec<usize> = Vec::new();
         let (mut referenced, mut nonmanifold) = (0, 0);
         for v in 0..self.vertex_face_offsets.len() - 1 {
             let around = self.faces_around(v as u32);
-            if around.is_empty() {
+            let Some(&first) = around.first() else {
                 continue;
-            }
+            };
             referenced += 1;
-            seen.clear();
-            seen.resize(around.len(), false);
-            let mut fans = 0;
-            for start in 0..around.len() {
-                if seen[start] {
-                    continue;
-                }
-                fans += 1;
-                seen[start] = true;
-                stack.push(start);
-                while let Some(k) = stack.pop() {
-                    let f = around[k] as usize;
-                    let c = corner_of(&faces[f], v as u32);
+            let mut reached = 1;
+            'ways: for way in 0..2 {
+                let (mut previous, mut f) = (NONE, first);
+                while reached < around.len() {
+                    let c = corner_of(&faces[f as usize], v as u32);
                     // The two edges of f that touch v: c→c+1 and c+2→c.
-                    for edge in [c, (c + 2) % 3] {
-                        let g = self.neighbors[f][edge];
-                        if g == NONE {
-                            continue;
-                        }
-                        if let Some(m) = around.iter().position(|&x| x == g) {
-                            if !seen[m] {
-                                seen[m] = true;
-                                stack.push(m);
-                            }
-                        }
+                    let across = [c, (c + 2) % 3].map(|edge| self.neighbors[f as usize][edge]);
+                    let next = if previous == NONE {
+                        across[way]
+                    } else if across[0] == previous {
+                        across[1]
+                    } else {
+                        across[0]
+                    };
+                    if next == NONE {
+                        break;
                     }
+                    if next == first {
+                        // Round the whole fan: the other way finds nothing new.
+                        break 'ways;
+                    }
+                    reached += 1;
+                    (previous, f) = (f, next);
                 }
             }
-            if fans > 1 {
+            if reached < around.len() {
                 nonmanifold += 1;
             }
         }
