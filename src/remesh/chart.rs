@@ -537,14 +537,18 @@ fn project_loops(chart: &RegionChart, sphere_loops: &[Vec<DVec3>]) -> Vec<Vec<DV
         .collect()
 }
 
-/// Twice the signed area of a closed polygon (positive counter-clockwise).
-fn doubled_signed_area(polygon: &[DVec2]) -> f64 {
-    let mut sum = 0.0;
-    for (i, &a) in polygon.iter().enumerate() {
-        let b = polygon.get(i + 1).or(polygon.first()).copied().unwrap_or(a);
-        // Relative to the first point, to limit cancellation.
-        let (a, b) = (a - polygon[0], b - polygon[0]);
-        sum += a.perp_dot(b);
+/// Twice the signed area of a closed polygon (positive counter-clockwise), its corners in
+/// order (taken once each: they may be computed on the way).
+fn doubled_signed_area(polygon: impl IntoIterator<Item = DVec2>) -> f64 {
+    let mut corners = polygon.into_iter();
+    let Some(first) = corners.next() else {
+        return 0.0;
+    };
+    let (mut sum, mut a) = (0.0, first);
+    for b in corners.chain(std::iter::once(first)) {
+        // Relative to the first corner, to limit cancellation.
+        sum += (a - first).perp_dot(b - first);
+        a = b;
     }
     sum
 }
@@ -555,9 +559,11 @@ fn doubled_signed_area(polygon: &[DVec2]) -> f64 {
 /// complement and the total is negative.
 fn is_outside(ellipsoid: &Ellipsoid, sphere_loops: &[Vec<DVec3>], pole: DVec3) -> bool {
     let chart = RegionChart::with_pole(ellipsoid, pole);
-    let total: f64 = project_loops(&chart, sphere_loops)
+    // The loops as project_loops gives them, without making them (the pole search asks this
+    // of many poles).
+    let total: f64 = sphere_loops
         .iter()
-        .map(|l| doubled_signed_area(l))
+        .map(|l| doubled_signed_area(l.iter().rev().map(|&u| chart.sphere_to_plane(u))))
         .sum();
     total.is_finite() && total > 0.0
 }
@@ -973,7 +979,7 @@ mod tests {
                         chart.clearance()
                     );
                     // The outer loop runs counter-clockwise in the plane.
-                    assert!(doubled_signed_area(&chart.plane_loops()[0]) > 0.0);
+                    assert!(doubled_signed_area(chart.plane_loops()[0].iter().copied()) > 0.0);
                     let mut checked = 0;
                     for _ in 0..4000 {
                         let u = rng.unit_vector();
