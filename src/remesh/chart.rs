@@ -637,14 +637,14 @@ fn choose_pole(
     let scored_in_full = loops.iter().map(Vec::len).sum::<usize>() <= SCORING_POINTS;
     let score = |c: DVec3| coarse.distance(c);
     // A candidate with its full coarse score: its distance to the whole boundary if it is
-    // acceptable.
-    let accept = |c: DVec3, score: f64| {
+    // acceptable (outside, which the caller may know already).
+    let accept = |c: DVec3, score: f64, outside: bool| {
         let exact = if scored_in_full {
             score
         } else {
             all.distance(c)
         };
-        (exact >= MIN_CLEARANCE && is_outside(ellipsoid, loops, c)).then_some(exact)
+        (exact >= MIN_CLEARANCE && (outside || is_outside(ellipsoid, loops, c))).then_some(exact)
     };
     let mut candidates = fibonacci_directions(POLE_CANDIDATES);
     let mean: DVec3 = loops.iter().flatten().copied().sum();
@@ -660,7 +660,10 @@ fn choose_pole(
     // Best-first: every candidate starts with an upper bound of its score, its distance to
     // a sample of the edges, and is scored against all of them only when it comes on top;
     // a scored candidate on top is ahead of every other (ties go to bounds, to be scored
-    // first), so only the few candidates near the top are ever scored in full.
+    // first), so only the few candidates near the top are ever scored in full. A candidate
+    // inside the region can never be accepted: it is dropped before it is scored (where the
+    // region is most of its ellipsoid, the candidates farthest from its boundary are
+    // inside it).
     let sample = coarse.every(coarse.edges.len().div_ceil(BOUND_EDGES));
     let mut ranked: BinaryHeap<Ranked> = candidates
         .iter()
@@ -675,12 +678,14 @@ fn choose_pole(
     while let Some(top) = ranked.pop() {
         let c = candidates[top.index];
         if top.bound {
-            ranked.push(Ranked {
-                score: score(c),
-                bound: false,
-                ..top
-            });
-        } else if let Some(d) = accept(c, top.score) {
+            if is_outside(ellipsoid, loops, c) {
+                ranked.push(Ranked {
+                    score: score(c),
+                    bound: false,
+                    ..top
+                });
+            }
+        } else if let Some(d) = accept(c, top.score, true) {
             first = Some((top.score, c, d));
             break;
         }
@@ -711,7 +716,7 @@ fn choose_pole(
         match moves
             .into_iter()
             .filter(|&(_, c, _)| allowed(c))
-            .find_map(|(s, c, nearest)| accept(c, s).map(|d| (s, c, d, nearest)))
+            .find_map(|(s, c, nearest)| accept(c, s, false).map(|d| (s, c, d, nearest)))
         {
             Some((s, c, d, nearest)) => {
                 (best_score, best, best_distance, near) = (s, c, d, nearest)
