@@ -407,37 +407,36 @@ impl RegionCdt {
     }
 
     /// [`RegionCdt::finish`], told which faces may be turned (by their corners; the others
-    /// are not), if that is known: vertex addition tests every face it makes.
+    /// are not), if that is known: vertex addition tests every face it makes. Only a region
+    /// with a turned face is mended ([`RegionCdt::swap_turned`]); the others are read off as
+    /// they are.
     fn finish_knowing(self, turned: Option<&[[FixedVertexHandle; 3]]>) -> RegionMesh {
-        let mut faces: Vec<[Vertex; 3]> = Vec::with_capacity(self.cdt.num_inner_faces());
-        let mut slot = vec![usize::MAX; self.cdt.num_all_faces()];
-        for f in self.cdt.inner_faces().filter(|f| *f.data()) {
-            slot[f.fix().index()] = faces.len();
-            faces.push(f.vertices().map(|v| *v.data()));
-        }
-        let suspects = turned.map(|turned| {
-            turned
-                .iter()
-                .filter_map(|&[a, b, c]| {
-                    let edge = self.cdt.get_edge_from_neighbors(a, b)?;
-                    let face = edge.face().as_inner()?;
-                    (edge.next().to().fix() == c).then(|| slot[face.fix().index()])
-                })
-                .filter(|&i| i != usize::MAX)
+        let is_turned_inside = |f: FixedFaceHandle<InnerTag>| {
+            let f = self.cdt.face(f);
+            *f.data() && self.is_turned(f.vertices().map(|v| v.data().point))
+        };
+        let any_turned = match turned {
+            Some(turned) => turned.iter().any(|&[a, b, c]| {
+                self.cdt
+                    .get_edge_from_neighbors(a, b)
+                    .filter(|e| e.next().to().fix() == c)
+                    .and_then(|e| e.face().as_inner())
+                    .is_some_and(|f| is_turned_inside(f.fix()))
+            }),
+            None => self.cdt.fixed_inner_faces().any(is_turned_inside),
+        };
+        let orient = |[a, b, c]: [Corner; 3]| if self.flip { [a, c, b] } else { [a, b, c] };
+        let inside = self.cdt.inner_faces().filter(|f| *f.data());
+        let triangles = if any_turned {
+            let mut faces: Vec<[Vertex; 3]> =
+                inside.map(|f| f.vertices().map(|v| *v.data())).collect();
+            self.swap_turned(&mut faces);
+            faces.iter().map(|f| orient(f.map(|v| v.corner))).collect()
+        } else {
+            inside
+                .map(|f| orient(f.vertices().map(|v| v.data().corner)))
                 .collect()
-        });
-        self.swap_turned(&mut faces, suspects);
-        let triangles = faces
-            .into_iter()
-            .map(|f| {
-                let [a, b, c] = f.map(|v| v.corner);
-                if self.flip {
-                    [a, c, b]
-                } else {
-                    [a, b, c]
-                }
-            })
-            .collect();
+        };
         RegionMesh {
             interior: self.interior,
             triangles,
@@ -452,20 +451,10 @@ impl RegionCdt {
     /// made only where both new faces are counter-clockwise in the plane, so the
     /// triangulation stays planar in the chart, and neither is much smaller than the smaller
     /// old face ([`SWAP_MIN_AREA_SHARE`]); boundary edges are never swapped. Each swap
-    /// lowers the count of turned faces, so the passes end. `suspects`, if given, are the
-    /// only faces that may be turned (else each face is tested).
-    fn swap_turned(&self, faces: &mut [[Vertex; 3]], suspects: Option<Vec<usize>>) {
+    /// lowers the count of turned faces, so the passes end.
+    fn swap_turned(&self, faces: &mut [[Vertex; 3]]) {
         let turned = |t: &[Vertex; 3]| usize::from(self.is_turned(t.map(|v| v.point)));
-        let mut count: Vec<usize> = match suspects {
-            Some(suspects) => {
-                let mut count = vec![0; faces.len()];
-                for i in suspects {
-                    count[i] = turned(&faces[i]);
-                }
-                count
-            }
-            None => faces.iter().map(turned).collect(),
-        };
+        let mut count: Vec<usize> = faces.iter().map(turned).collect();
         if count.iter().all(|&c| c == 0) {
             return;
         }
