@@ -631,10 +631,16 @@ fn choose_pole(
     loops: &[Vec<DVec3>],
     walk: PoleWalk,
 ) -> Option<(DVec3, f64)> {
-    let coarse = SphereEdges::new(&decimate_loops(loops, SCORING_POINTS));
     let all = SphereEdges::new(loops);
     // Up to SCORING_POINTS boundary points the coarse edges are all of them.
     let scored_in_full = loops.iter().map(Vec::len).sum::<usize>() <= SCORING_POINTS;
+    let decimated;
+    let coarse = if scored_in_full {
+        &all
+    } else {
+        decimated = SphereEdges::new(&decimate_loops(loops, SCORING_POINTS));
+        &decimated
+    };
     let score = |c: DVec3| coarse.distance(c);
     // A candidate with its full coarse score: its distance to the whole boundary if it is
     // acceptable (outside, which the caller may know already).
