@@ -76,6 +76,9 @@ pub struct RegionMesh {
     /// ([`crate::ellipsoid::Ellipsoid::normal`]): outward for positive ellipsoids, inward for
     /// negative ones.
     pub triangles: Vec<[Corner; 3]>,
+    /// Triangles turned against the ellipsoid (normal more than 90° from its signed normal
+    /// at their centroid) left after diagonal swaps (`RegionCdt::swap_turned`).
+    pub turned: usize,
 }
 
 /// A vertex of the chart's triangulation: its plane position, its 3D position, what it is.
@@ -427,19 +430,22 @@ impl RegionCdt {
         };
         let orient = |[a, b, c]: [Corner; 3]| if self.flip { [a, c, b] } else { [a, b, c] };
         let inside = self.cdt.inner_faces().filter(|f| *f.data());
-        let triangles = if any_turned {
+        let (triangles, turned) = if any_turned {
             let mut faces: Vec<[Vertex; 3]> =
                 inside.map(|f| f.vertices().map(|v| *v.data())).collect();
-            self.swap_turned(&mut faces);
-            faces.iter().map(|f| orient(f.map(|v| v.corner))).collect()
+            let turned = self.swap_turned(&mut faces);
+            let triangles = faces.iter().map(|f| orient(f.map(|v| v.corner))).collect();
+            (triangles, turned)
         } else {
-            inside
+            let triangles = inside
                 .map(|f| orient(f.vertices().map(|v| v.data().corner)))
-                .collect()
+                .collect();
+            (triangles, 0)
         };
         RegionMesh {
             interior: self.interior,
             triangles,
+            turned,
         }
     }
 }
@@ -451,12 +457,12 @@ impl RegionCdt {
     /// made only where both new faces are counter-clockwise in the plane, so the
     /// triangulation stays planar in the chart, and neither is much smaller than the smaller
     /// old face ([`SWAP_MIN_AREA_SHARE`]); boundary edges are never swapped. Each swap
-    /// lowers the count of turned faces, so the passes end.
-    fn swap_turned(&self, faces: &mut [[Vertex; 3]]) {
+    /// lowers the count of turned faces, so the passes end. Returns the count left.
+    fn swap_turned(&self, faces: &mut [[Vertex; 3]]) -> usize {
         let turned = |t: &[Vertex; 3]| usize::from(self.is_turned(t.map(|v| v.point)));
         let mut count: Vec<usize> = faces.iter().map(turned).collect();
         if count.iter().all(|&c| c == 0) {
-            return;
+            return 0;
         }
         // Directed edge (by corners) → the face that runs it.
         let mut by_edge: HashMap<(Corner, Corner), usize> = HashMap::new();
@@ -530,6 +536,7 @@ impl RegionCdt {
                 }
             }
         }
+        count.iter().sum()
     }
 }
 
@@ -659,6 +666,12 @@ pub struct AdaptiveTriangulation {
     min_spacing: f64,
     /// Every face found turned when it was made, by its corners (it may be gone since).
     turned: Vec<[FixedVertexHandle; 3]>,
+    /// Whether a face at the target scale is one by its length alone
+    /// ([`Self::judge_by_length`]).
+    by_length: bool,
+    /// Whether a face was split into a turned one only because its centroid lay far from
+    /// the surface ([`Self::made_curved_splits`]).
+    curved_splits: bool,
 }
 
 impl AdaptiveTriangulation {
@@ -682,6 +695,8 @@ impl AdaptiveTriangulation {
             heap: BinaryHeap::new(),
             min_spacing,
             turned: Vec::new(),
+            by_length: false,
+            curved_splits: false,
         };
         this.push_inside_faces();
         Ok(this)
@@ -709,18 +724,20 @@ impl AdaptiveTriangulation {
             let point = self.inner.surface.point_and_height(plane);
             // A face that is not turned is not split into one that is and cannot be split in
             // turn (a turned face is split whatever it gives: nothing is lost).
-            if candidate.error.is_finite()
-                && self.split_strands_a_turned_face(&candidate, plane, point)
+            let verdict = if candidate.error.is_finite() {
+                self.judge_split(&candidate, plane, point)
+            } else {
+                Verdict::Split
+            };
+            if verdict == Verdict::Refuse
+                || self
+                    .inner
+                    .insert_interior(plane, point, candidate.corners[0])
+                    .is_none()
             {
                 continue;
             }
-            if self
-                .inner
-                .insert_interior(plane, point, candidate.corners[0])
-                .is_none()
-            {
-                continue;
-            }
+            self.curved_splits |= verdict == Verdict::SplitCurved;
             let star = std::mem::take(&mut self.inner.star);
             for &face in &star {
                 self.push_face(face);
@@ -757,6 +774,22 @@ impl AdaptiveTriangulation {
         }
     }
 
+    /// Judges from now on whether a face is at the target scale by its length alone, however
+    /// far its centroid lies from the surface (`CURVED_FACE_SPACINGS` off): a face across
+    /// a part curved more sharply than the spacing stays whole rather than be split into
+    /// faces turned against the ellipsoid. For a region where such splits left a turned
+    /// face ([`Self::made_curved_splits`]).
+    pub fn judge_by_length(&mut self) {
+        self.by_length = true;
+    }
+
+    /// Whether some face at the target scale by its length was split into a face turned
+    /// against the ellipsoid because its centroid lay far from the surface
+    /// (`CURVED_FACE_SPACINGS`).
+    pub fn made_curved_splits(&self) -> bool {
+        self.curved_splits
+    }
+
     /// Interior vertices inserted so far.
     pub fn added(&self) -> usize {
         self.inner.interior.len()
@@ -777,9 +810,9 @@ impl AdaptiveTriangulation {
         }
     }
 
-    /// Whether splitting the candidate's face at `plane` (its plane centroid; `point` and its
-    /// height, the new vertex) would give a face turned against its ellipsoid
-    /// ([`RegionCdt::is_turned`]) that is not to be mended by splitting it in turn.
+    /// Whether, and why, the candidate's face is split at `plane` (its plane centroid; `point`
+    /// and its height, the new vertex): not when that gives a face turned against its
+    /// ellipsoid ([`RegionCdt::is_turned`]) that is not to be mended by splitting it in turn.
     ///
     /// On a thin ellipsoid the chart is far from isotropic (a region on radii 250 × 0.005 ×
     /// 0.007 is stretched fifty thousand times more along one axis than the others), so near
@@ -788,17 +821,14 @@ impl AdaptiveTriangulation {
     /// that edge is turned over. A turned face is split first ([`Self::push_face`]), but at
     /// the scale of the target edge length its splits are turned again until the boundary
     /// clearance or the spacing stops them, and a turned face is left (horse at K = 24: 198
-    /// flipped triangles at 12 500 vertices). So a face no longer than
-    /// [`STRICT_FACE_SPACINGS`] minimum spacings is not split into a turned face at all; a
-    /// larger one, which spans enough of a curved surface that its first splits may be
-    /// turned and mended by the next (the blobs' first splits), only not into a turned face
-    /// that cannot be split ([`Self::split_point`]). A refused face stays as it is.
-    fn split_strands_a_turned_face(
-        &self,
-        candidate: &Candidate,
-        plane: DVec2,
-        point: (DVec3, f64),
-    ) -> bool {
+    /// flipped triangles at 12 500 vertices). So a face at the target scale (no longer than
+    /// [`STRICT_FACE_SPACINGS`] minimum spacings and, unless [`Self::judge_by_length`], its
+    /// centroid within [`CURVED_FACE_SPACINGS`] of the surface) is not split into a turned
+    /// face at all; any other, which spans enough of a curved surface that its first splits
+    /// may be turned and mended by the next (the blobs' first splits, a finger's tip), only
+    /// not into a turned face that cannot be split ([`Self::split_point`]). A refused face
+    /// stays as it is.
+    fn judge_split(&self, candidate: &Candidate, plane: DVec2, point: (DVec3, f64)) -> Verdict {
         let handles = candidate.corners.map(|h| self.inner.cdt.vertex(h));
         let corners = handles.each_ref().map(|v| v.data());
         // Never inserted: its index is not used.
@@ -810,14 +840,23 @@ impl AdaptiveTriangulation {
             .filter(|face| self.inner.is_turned(face.map(|v| v.point)))
             .peekable();
         if turned.peek().is_none() {
-            return false;
+            return Verdict::Split;
         }
         let longest = edges
             .iter()
             .map(|&[i, j]| corners[i].point.distance(corners[j].point))
             .fold(0.0, f64::max);
-        longest <= STRICT_FACE_SPACINGS * self.min_spacing
+        let short = longest <= STRICT_FACE_SPACINGS * self.min_spacing;
+        let near = candidate.error <= CURVED_FACE_SPACINGS * self.min_spacing;
+        if (short && (near || self.by_length))
             || turned.any(|face| self.split_point(face).is_none())
+        {
+            Verdict::Refuse
+        } else if short {
+            Verdict::SplitCurved
+        } else {
+            Verdict::Split
+        }
     }
 
     /// Where the face with these corners (counter-clockwise in the plane) is split: the
@@ -897,12 +936,38 @@ impl AdaptiveTriangulation {
 
 /// Faces up to this many minimum spacings long (eight target edge lengths: the adaptive
 /// scheme's minimum spacing is a quarter of the target) are never split into a face turned
-/// against the ellipsoid ([`AdaptiveTriangulation::split_strands_a_turned_face`]).
+/// against the ellipsoid ([`AdaptiveTriangulation::judge_split`]).
 /// Measured: horse K = 24 (the last release's file) at 12 500 vertices has 36, 4 and 4
 /// flipped triangles at 4, 16 and 32 (198 without); at 32 hand K = 18 decodes clean on its
 /// first meshing attempt at 5 000 vertices (at 16 on its third); at 64 blob3's large first
 /// faces stop refining (RMS 2.5 % of the diagonal instead of 0.08 %).
 const STRICT_FACE_SPACINGS: f64 = 32.0;
+
+/// A face whose flat centroid lies more than this many minimum spacings (one target edge
+/// length) from the surface is not at the target scale, however short: it cuts across a part
+/// curved more sharply than the spacing, and is split even into faces turned against the
+/// ellipsoid, which are split in turn ([`AdaptiveTriangulation::judge_split`]).
+/// Its three corners on the sides of a finger near its tip, such a face was left as a flat
+/// cut: hand K = 12 decoded 11 % of the diagonal from its source at 1 000 and 2 000 vertices
+/// (4.1 % with this rule, as at 5 000), spot K = 24 8.4 % at 5 000 (1.9 %), penguin K = 12
+/// 9.1 % at every budget (2.3–2.6 %). Measured on the small meshes at K = 12 and 24 and 1 000
+/// to 12 500 vertices: at 3, horse K = 24 has a flipped triangle at 5 000; at 4 none has one
+/// it did not have before. Where such splits do leave a turned face (dino K = 8's leg at
+/// 3 000 vertices), the region is meshed again without them (`assemble`'s
+/// `mend_curved_splits`).
+const CURVED_FACE_SPACINGS: f64 = 4.0;
+
+/// What [`AdaptiveTriangulation::judge_split`] decides for a face.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Verdict {
+    /// Left whole: a face split from it would be turned against the ellipsoid and stay so.
+    Refuse,
+    /// Split.
+    Split,
+    /// Split into a face turned against the ellipsoid although at the target scale by its
+    /// length, because its centroid lies far from the surface ([`CURVED_FACE_SPACINGS`]).
+    SplitCurved,
+}
 
 /// Below this fraction of the largest radius two vertices count as one: a split point that
 /// close to a corner is never inserted, whatever `min_spacing` says.
