@@ -76,7 +76,7 @@ pub enum Projection {
     NormalOnto(Ellipsoid),
 }
 
-/// How [`choose_pole`]'s pattern search may move the pole away from the boundary.
+/// How `choose_pole`'s pattern search may move the pole away from the boundary.
 ///
 /// It accepts a pole when the region's loops enclose a positive area in its chart, whose
 /// straight edges are images of circles through the pole, not of the great-circle arcs

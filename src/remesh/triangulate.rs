@@ -29,7 +29,7 @@
 //! being conformal). On decoded files an ear of three consecutive boundary points, which lie
 //! off the ellipsoid, can still face against the normal, as can a face vertex addition
 //! would not split; where swapping its diagonal with an inside neighbour turns fewer faces,
-//! the output has the other diagonal ([`RegionCdt::swap_turned`], the classic edge flip).
+//! the output has the other diagonal (`RegionCdt::swap_turned`, the classic edge flip).
 
 use super::chart::RegionChart;
 use super::surface::RegionSurface;
