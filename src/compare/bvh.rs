@@ -185,6 +185,54 @@ impl Bvh {
         }
         best.distance_squared.is_finite().then_some(best)
     }
+
+    /// Whether some indexed triangle lies within `radius` of `p` (at a distance of at most
+    /// `radius`). Stops at the first such triangle: for a point near the surface, one walk
+    /// down the tree, where [`Bvh::find_closest`] must rule out every nearer box.
+    pub fn is_within(&self, p: DVec3, radius: f64) -> bool {
+        let Some(root) = self.nodes.first() else {
+            return false;
+        };
+        let r2 = radius * radius;
+        let mut stack: Vec<(u32, f64)> = Vec::with_capacity(64);
+        stack.push((0, box_distance_squared(p, root)));
+        while let Some((index, d2)) = stack.pop() {
+            if d2 > r2 {
+                continue;
+            }
+            let Some(node) = self.nodes.get(index as usize) else {
+                continue;
+            };
+            if node.count > 0 {
+                let first = node.first as usize;
+                let last = first + node.count as usize;
+                let triangles = self.triangles.get(first..last).unwrap_or(&[]);
+                if triangles.iter().any(|&(corners, _)| {
+                    closest_point_on_triangle(p, corners).distance_squared(p) <= r2
+                }) {
+                    return true;
+                }
+                continue;
+            }
+            let (l, r) = (node.first, node.first + 1);
+            let dl = self
+                .nodes
+                .get(l as usize)
+                .map_or(f64::INFINITY, |n| box_distance_squared(p, n));
+            let dr = self
+                .nodes
+                .get(r as usize)
+                .map_or(f64::INFINITY, |n| box_distance_squared(p, n));
+            if dl <= dr {
+                stack.push((r, dr));
+                stack.push((l, dl));
+            } else {
+                stack.push((l, dl));
+                stack.push((r, dr));
+            }
+        }
+        false
+    }
 }
 
 fn centroid(t: &[DVec3; 3]) -> DVec3 {
@@ -242,6 +290,24 @@ mod tests {
             assert_eq!(hit.id, id, "at {p}");
             assert_eq!(hit.point.distance_squared(p), d2);
         }
+    }
+
+    /// `is_within` says what the brute-force distance says, at radii on both sides of it
+    /// and at it (within means at most).
+    #[test]
+    fn is_within_agrees_with_brute_force() {
+        let triangles = random_triangles(7, 700);
+        let bvh = Bvh::build(triangles.clone());
+        let mut rng = SplitMix64::new(8);
+        for _ in 0..500 {
+            let p = rng.unit_vector() * rng.range_f64(0.0, 8.0);
+            let d = brute_force(&triangles, p).0.sqrt();
+            assert!(bvh.is_within(p, d * 1.001 + 1e-12), "at {p}");
+            assert!(!bvh.is_within(p, d * 0.999 - 1e-12), "at {p}");
+            let radius = rng.range_f64(0.0, 3.0);
+            assert_eq!(bvh.is_within(p, radius), d <= radius, "at {p}");
+        }
+        assert!(!Bvh::build(Vec::new()).is_within(DVec3::ZERO, 1.0));
     }
 
     #[test]
