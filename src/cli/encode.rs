@@ -44,8 +44,9 @@ pub struct EncodeArgs {
     /// Write the segmentation as it is, without decoding the file to check it. By default
     /// the encoder decodes what it wrote and mends each region that does not mesh cleanly:
     /// a boundary that folds in its chart is stored at the mesh's own points, a small region
-    /// is dissolved into its neighbours, another is split; so the file may hold more or
-    /// fewer regions than -k asks for.
+    /// is dissolved into its neighbours, another is split, and so is a region decoded a
+    /// tenth of the diagonal farther from the mesh than its ellipsoid lies; so the file may
+    /// hold more or fewer regions than -k asks for.
     #[arg(long)]
     no_verify: bool,
     /// Print the report as JSON on stdout (not with `-o -`).
