@@ -134,16 +134,60 @@ impl Bvh {
 
     /// The closest point of the indexed triangles to `p`; `None` when there are none.
     pub fn find_closest(&self, p: DVec3) -> Option<Hit> {
-        let root = self.nodes.first()?;
         let mut best = Hit {
             point: DVec3::ZERO,
             distance_squared: f64::INFINITY,
             id: u32::MAX,
         };
+        self.walk(p, f64::INFINITY, |triangles| {
+            for &(corners, id) in triangles {
+                let q = closest_point_on_triangle(p, corners);
+                let d2 = q.distance_squared(p);
+                if d2 < best.distance_squared || (d2 == best.distance_squared && id < best.id) {
+                    best = Hit {
+                        point: q,
+                        distance_squared: d2,
+                        id,
+                    };
+                }
+            }
+            Some(best.distance_squared)
+        });
+        best.distance_squared.is_finite().then_some(best)
+    }
+
+    /// Whether some indexed triangle lies within `radius` of `p` (at a distance of at most
+    /// `radius`). Stops at the first such triangle: for a point near the surface, one walk
+    /// down the tree, where [`Bvh::find_closest`] must rule out every nearer box.
+    pub fn is_within(&self, p: DVec3, radius: f64) -> bool {
+        let r2 = radius * radius;
+        let mut found = false;
+        self.walk(p, r2, |triangles| {
+            found = triangles.iter().any(|&(corners, _)| {
+                closest_point_on_triangle(p, corners).distance_squared(p) <= r2
+            });
+            (!found).then_some(r2)
+        });
+        found
+    }
+
+    /// Walks the tree from `p`, the nearer child first, skipping every box whose squared
+    /// distance to `p` exceeds the reach (at first `reach`), and hands each leaf's
+    /// triangles to `visit`, which returns the reach from then on, or `None` to stop.
+    fn walk(
+        &self,
+        p: DVec3,
+        reach: f64,
+        mut visit: impl FnMut(&[([DVec3; 3], u32)]) -> Option<f64>,
+    ) {
+        let Some(root) = self.nodes.first() else {
+            return;
+        };
+        let mut reach = reach;
         let mut stack: Vec<(u32, f64)> = Vec::with_capacity(64);
         stack.push((0, box_distance_squared(p, root)));
         while let Some((index, d2)) = stack.pop() {
-            if d2 > best.distance_squared {
+            if d2 > reach {
                 continue;
             }
             let Some(node) = self.nodes.get(index as usize) else {
@@ -152,28 +196,19 @@ impl Bvh {
             if node.count > 0 {
                 let first = node.first as usize;
                 let last = first + node.count as usize;
-                for &(corners, id) in self.triangles.get(first..last).unwrap_or(&[]) {
-                    let q = closest_point_on_triangle(p, corners);
-                    let d2 = q.distance_squared(p);
-                    if d2 < best.distance_squared || (d2 == best.distance_squared && id < best.id) {
-                        best = Hit {
-                            point: q,
-                            distance_squared: d2,
-                            id,
-                        };
-                    }
+                match visit(self.triangles.get(first..last).unwrap_or(&[])) {
+                    Some(r) => reach = r,
+                    None => return,
                 }
                 continue;
             }
             let (l, r) = (node.first, node.first + 1);
-            let dl = self
-                .nodes
-                .get(l as usize)
-                .map_or(f64::INFINITY, |n| box_distance_squared(p, n));
-            let dr = self
-                .nodes
-                .get(r as usize)
-                .map_or(f64::INFINITY, |n| box_distance_squared(p, n));
+            let distance = |i: u32| {
+                self.nodes
+                    .get(i as usize)
+                    .map_or(f64::INFINITY, |n| box_distance_squared(p, n))
+            };
+            let (dl, dr) = (distance(l), distance(r));
             // Push the farther child first so that the nearer one is searched first.
             if dl <= dr {
                 stack.push((r, dr));
@@ -183,55 +218,6 @@ impl Bvh {
                 stack.push((r, dr));
             }
         }
-        best.distance_squared.is_finite().then_some(best)
-    }
-
-    /// Whether some indexed triangle lies within `radius` of `p` (at a distance of at most
-    /// `radius`). Stops at the first such triangle: for a point near the surface, one walk
-    /// down the tree, where [`Bvh::find_closest`] must rule out every nearer box.
-    pub fn is_within(&self, p: DVec3, radius: f64) -> bool {
-        let Some(root) = self.nodes.first() else {
-            return false;
-        };
-        let r2 = radius * radius;
-        let mut stack: Vec<(u32, f64)> = Vec::with_capacity(64);
-        stack.push((0, box_distance_squared(p, root)));
-        while let Some((index, d2)) = stack.pop() {
-            if d2 > r2 {
-                continue;
-            }
-            let Some(node) = self.nodes.get(index as usize) else {
-                continue;
-            };
-            if node.count > 0 {
-                let first = node.first as usize;
-                let last = first + node.count as usize;
-                let triangles = self.triangles.get(first..last).unwrap_or(&[]);
-                if triangles.iter().any(|&(corners, _)| {
-                    closest_point_on_triangle(p, corners).distance_squared(p) <= r2
-                }) {
-                    return true;
-                }
-                continue;
-            }
-            let (l, r) = (node.first, node.first + 1);
-            let dl = self
-                .nodes
-                .get(l as usize)
-                .map_or(f64::INFINITY, |n| box_distance_squared(p, n));
-            let dr = self
-                .nodes
-                .get(r as usize)
-                .map_or(f64::INFINITY, |n| box_distance_squared(p, n));
-            if dl <= dr {
-                stack.push((r, dr));
-                stack.push((l, dl));
-            } else {
-                stack.push((l, dl));
-                stack.push((r, dr));
-            }
-        }
-        false
     }
 }
 
