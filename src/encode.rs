@@ -467,6 +467,7 @@ impl Verdict {
             Verdict::Far(distance, blamed, _) => (
                 FAR,
                 Faults {
+                    off: true,
                     distance: *distance,
                     ..Faults::default()
                 },
@@ -478,12 +479,15 @@ impl Verdict {
     }
 }
 
-/// How bad a mesh that is not clean is, worst first in the order of comparison: unsound
-/// (not closed where its source is, not manifold, or not consistently oriented), then its
-/// flipped and degenerate triangles; for one that decodes clean, its departure from the
-/// source.
+/// How bad a mesh that is not clean is, worst first in the order of comparison: a region
+/// off the source, then unsound (not closed where its source is, not manifold, not
+/// consistently oriented, or in more pieces than the source), then its flipped and
+/// degenerate triangles, then its departure from the source.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Default)]
 struct Faults {
+    /// Some region departs from the source by more than [`MAX_DEPARTURE`] beyond what its
+    /// ellipsoid misses (`Source::far_regions`).
+    off: bool,
     unsound: bool,
     bad_triangles: usize,
     /// For a mesh that decodes clean, how far its farthest region departs from the source,
@@ -669,59 +673,8 @@ fn verify(bytes: &[u8], source: &Source, labels: &[u32]) -> Result<Verdict, Enco
         leave_out: false,
         ..RemeshOptions::default()
     };
-    match remesh(&representation, &options) {
-        Ok(out) if out.check.is_clean_from(source_manifold) => {
-            if let Some((blamed, pieces)) = source.extra_pieces(&out) {
-                let faults = Faults {
-                    unsound: true,
-                    ..Faults::default()
-                };
-                return Ok(Verdict::Dirty(
-                    faults,
-                    blamed
-                        .into_iter()
-                        .map(|region| Split { region, cut: None })
-                        .collect(),
-                    format!(
-                        "decodes in {pieces} pieces where the source has {}",
-                        source.pieces
-                    ),
-                ));
-            }
-            let far = source.far_regions(
-                &out.mesh,
-                &out.face_regions,
-                &representation.ellipsoids,
-                labels,
-            );
-            match far.first() {
-                None => Ok(Verdict::Clean),
-                Some(&(region, distance)) => Ok(Verdict::Far(
-                    (distance / source.diagonal * 1e4).round() as u32,
-                    far.iter()
-                        .map(|&(region, _)| Split { region, cut: None })
-                        .collect(),
-                    format!(
-                        "decodes clean, but region {region} departs from the source by {:.1} % of the diagonal more than its ellipsoid does",
-                        100.0 * distance / source.diagonal
-                    ),
-                )),
-            }
-        }
-        Ok(out) => {
-            let c = out.check;
-            let problem = format!("decodes with {}", c.faults());
-            let blamed = problem_regions(&representation, &out, source_manifold)
-                .into_iter()
-                .map(|region| Split { region, cut: None })
-                .collect();
-            let faults = Faults {
-                unsound: !c.is_sound_from(source_manifold),
-                bad_triangles: c.flipped + c.degenerate,
-                distance: 0,
-            };
-            Ok(Verdict::Dirty(faults, blamed, problem))
-        }
+    let out = match remesh(&representation, &options) {
+        Ok(out) => out,
         // The decoder reports the region its last attempt stopped at, which is often not
         // where its first (and best) attempt failed. Blamed instead: the first region that
         // fails in the first attempt, cut between the two sheets of its fold when the chart
@@ -735,13 +688,68 @@ fn verify(bytes: &[u8], source: &Source, labels: &[u32]) -> Result<Verdict, Enco
                     cut: f.crossing.and_then(cut_between),
                 })
                 .unwrap_or(Split { region, cut: None });
-            Ok(Verdict::Fails(
+            return Ok(Verdict::Fails(
                 vec![split],
                 format!("does not decode: region {region}: {what}"),
-            ))
+            ));
         }
-        Err(e) => Err(e.into()),
+        Err(e) => return Err(e.into()),
+    };
+    // How far the mesh departs from the source, whatever else is wrong with it: a mesh
+    // with a flipped triangle and a region meshed a thousand diagonals away (horse at
+    // K = 48, mended) must not rank with one that has only the flipped triangle.
+    let far = source.far_regions(
+        &out.mesh,
+        &out.face_regions,
+        &representation.ellipsoids,
+        labels,
+    );
+    let departure = far.first().map_or(0, |&(_, d)| {
+        (d / source.diagonal * 1e4).round().min(f64::from(u32::MAX)) as u32
+    });
+    let blame = |regions: Vec<u32>| -> Vec<Split> {
+        regions
+            .into_iter()
+            .map(|region| Split { region, cut: None })
+            .collect()
+    };
+    let c = out.check;
+    let extra = source.extra_pieces(&out);
+    if !c.is_clean_from(source_manifold) || extra.is_some() {
+        let faults = Faults {
+            off: !far.is_empty(),
+            unsound: !c.is_sound_from(source_manifold) || extra.is_some(),
+            bad_triangles: c.flipped + c.degenerate,
+            distance: departure,
+        };
+        return Ok(match extra {
+            Some((regions, pieces)) if c.is_clean_from(source_manifold) => Verdict::Dirty(
+                faults,
+                blame(regions),
+                format!(
+                    "decodes in {pieces} pieces where the source has {}",
+                    source.pieces
+                ),
+            ),
+            _ => Verdict::Dirty(
+                faults,
+                blame(problem_regions(&representation, &out, source_manifold)),
+                format!("decodes with {}", c.faults()),
+            ),
+        });
     }
+    Ok(match far.first() {
+        None => Verdict::Clean,
+        Some(&(region, distance)) => Verdict::Far(
+            departure,
+            blame(far.iter().map(|&(r, _)| r).collect()),
+            format!(
+                "decodes clean, but region {region} departs from the source by {:.1} % of the \
+                 diagonal more than its ellipsoid does",
+                100.0 * distance / source.diagonal
+            ),
+        ),
+    })
 }
 
 /// The plane halfway between two crossing loop edges, facing from one to the other: the
@@ -1388,22 +1396,27 @@ mod tests {
     /// triangles it has (horse at K = 32, mended for 12 rounds, kept a file with a hole and
     /// 1 flipped triangle over closed ones with 13), then the fewest faulty triangles, then
     /// the fewest regions to blame. A clean mesh with a region decoded off the source ranks
-    /// between a clean one and one with faults, the nearer first.
+    /// between a clean one and one with faults, the nearer first; of meshes with faults,
+    /// one with a region off the source ranks last (horse at K = 48, mended, kept a file
+    /// with 1 flipped triangle and a region meshed a thousand diagonals away over one in
+    /// an extra piece).
     #[test]
     fn a_sound_mesh_ranks_before_one_with_a_hole() {
         let blamed = |n: u32| (0..n).map(|region| Split { region, cut: None }).collect();
-        let dirty = |unsound, bad_triangles, n| {
+        let faulty = |off, unsound, bad_triangles, n| {
             Verdict::Dirty(
                 Faults {
+                    off,
                     unsound,
                     bad_triangles,
-                    distance: 0,
+                    distance: if off { 99_000 } else { 0 },
                 },
                 blamed(n),
                 String::new(),
             )
             .score()
         };
+        let dirty = |unsound, bad_triangles, n| faulty(false, unsound, bad_triangles, n);
         let ranked = [
             Verdict::Clean.score(),
             Verdict::Far(1200, blamed(2), String::new()).score(),
@@ -1413,6 +1426,8 @@ mod tests {
             dirty(false, 13, 2),
             dirty(true, 1, 1),
             dirty(true, 40, 1),
+            faulty(true, false, 1, 1),
+            faulty(true, true, 0, 1),
             Verdict::Fails(blamed(1), String::new()).score(),
             Verdict::Fails(blamed(2), String::new()).score(),
         ];
