@@ -509,14 +509,11 @@ struct Source {
 
 impl Source {
     fn new(mesh: &Mesh) -> Source {
-        let faces = (0..mesh.face_count())
-            .map(|f| (mesh.corners(f), f as u32))
-            .collect();
         Source {
             manifold: mesh.topology().is_manifold(),
             pieces: mesh.topology().component_count(),
             diagonal: mesh.bounding_box().map_or(0.0, |b| b.diagonal()),
-            faces: Bvh::build(faces),
+            faces: face_bvh(mesh),
             centroids: (0..mesh.face_count())
                 .map(|f| mesh.face_centroid(f))
                 .collect(),
@@ -577,21 +574,15 @@ impl Source {
         ellipsoids: &[Ellipsoid],
         labels: &[u32],
     ) -> Vec<(u32, f64)> {
-        let mut farthest: Vec<(u32, f64)> = Vec::new();
+        // Per region, its largest departure.
+        let mut farthest = vec![0.0f64; ellipsoids.len()];
         let limit = MAX_DEPARTURE * self.diagonal;
         let mut note = |region: u32, departure: f64| {
-            if departure > limit {
-                match farthest.iter_mut().find(|(r, _)| *r == region) {
-                    Some(e) => e.1 = e.1.max(departure),
-                    None => farthest.push((region, departure)),
-                }
+            if let Some(d) = farthest.get_mut(region as usize) {
+                *d = d.max(departure);
             }
         };
-        let decoded_faces = Bvh::build(
-            (0..decoded.face_count())
-                .map(|f| (decoded.corners(f), f as u32))
-                .collect(),
-        );
+        let decoded_faces = face_bvh(decoded);
         // Each source face's distance to its region's ellipsoid, and to the decoded mesh
         // where that is more than the limit farther (measured exactly only there: most
         // faces are found within it at the first leaf); then each decoded face's to the
@@ -637,9 +628,19 @@ impl Source {
                 note(region, d);
             }
         }
-        farthest.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
-        farthest
+        let mut far: Vec<(u32, f64)> = (0u32..).zip(farthest).filter(|&(_, d)| d > limit).collect();
+        far.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+        far
     }
+}
+
+/// A mesh's faces in a [`Bvh`], each with its index.
+fn face_bvh(mesh: &Mesh) -> Bvh {
+    Bvh::build(
+        (0..mesh.face_count())
+            .map(|f| (mesh.corners(f), f as u32))
+            .collect(),
+    )
 }
 
 /// A region whose decoded surface departs from the source by more than this share of the
