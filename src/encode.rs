@@ -845,6 +845,7 @@ fn represent(
         measured_hausdorff: None,
         // Decoders default to the source's vertex count: no need to store it twice.
         suggested_vertices: None,
+        remesh_hint: None,
     };
     let representation =
         Representation::from_boundary(segmentation.proxies.clone(), &positions, &graph, metadata)?;
@@ -1291,6 +1292,7 @@ mod tests {
                 check: MeshCheck::default(),
                 omitted: Vec::new(),
                 attempts: 1,
+                treatment: None,
             }
         };
         let source = Source::new(&sphere);

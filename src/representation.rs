@@ -107,6 +107,11 @@ pub struct Metadata {
     pub measured_hausdorff: Option<f64>,
     /// Suggested total vertex count for remeshing.
     pub suggested_vertices: Option<u64>,
+    /// Which of the reference remesher's boundary treatments meshed the file clean when it
+    /// was written ([`crate::remesh::assemble::Treatment::code`]); a remesher tries it
+    /// first. A hint: a value that names no treatment is ignored. Format 1.1 (spec §6.1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub remesh_hint: Option<u64>,
 }
 
 /// Which part of a representation an invariant concerns.

@@ -206,7 +206,7 @@ fn golden_files_decode_to_their_committed_digests() {
         assert!(encode(&decoded) == bytes, "{name}: re-encoding changed");
         seen += 1;
     }
-    assert_eq!(seen, 4);
+    assert_eq!(seen, 5);
 }
 
 // ---------------------------------------------------------------------------------------
@@ -621,16 +621,56 @@ fn invalid_files_give_the_error_their_name_says() {
 #[test]
 fn version_rules() {
     let s = payloads(&encode(&sample::sphere()));
-    // A higher minor version is read; what it appends to a section is ignored.
+    // A higher minor version is read; what it appends to a section is ignored (after 1.1's
+    // remesh hint, here none).
     let newer = assemble(
         1,
         7,
         0,
-        &edit(&s, TAG_META, |raw| raw.extend_from_slice(&[1, 2, 3])),
+        &edit(&s, TAG_META, |raw| raw.extend_from_slice(&[0, 1, 2, 3])),
     );
     assert_eq!(
         format::decode(&newer, &Limits::default()).unwrap(),
         sample::sphere()
+    );
+    // 1.1 adds the remesh hint to META: there it must be, and nothing after it.
+    let hinted = |minor, tail: &[u8]| {
+        let bytes = assemble(1, minor, 0, &edit(&s, TAG_META, |raw| raw.extend(tail)));
+        format::decode(&bytes, &Limits::default()).map(|rep| rep.metadata.remesh_hint)
+    };
+    assert_eq!(hinted(1, &[1, 37]), Ok(Some(37)));
+    assert_eq!(hinted(1, &[0]), Ok(None));
+    for (minor, tail) in [(1, &[][..]), (1, &[2]), (1, &[1])] {
+        assert!(
+            matches!(
+                hinted(minor, tail),
+                Err(DecodeError::Format { what, .. }) if what.starts_with("M0")
+            ),
+            "1.{minor} META + {tail:?}"
+        );
+    }
+    for (minor, tail) in [(1, &[1, 37, 0][..]), (0, &[1, 37])] {
+        assert!(
+            matches!(
+                hinted(minor, tail),
+                Err(DecodeError::Format { what, .. }) if what.starts_with("S9")
+            ),
+            "1.{minor} META + {tail:?}"
+        );
+    }
+    // A file is written with the lowest minor that holds it.
+    assert_eq!(
+        format::inspect(&encode(&sample::sphere()), &Limits::default())
+            .unwrap()
+            .minor,
+        0
+    );
+    let hinted_file = encode(&sample::two_hemispheres_hinted());
+    assert_eq!(
+        format::inspect(&hinted_file, &Limits::default())
+            .unwrap()
+            .minor,
+        1
     );
     // Unknown optional sections are skipped.
     let mut extra = s.clone();
@@ -769,10 +809,11 @@ fn recipe() -> impl Strategy<Value = Recipe> {
             any::<u32>(),
             prop::option::of(0.0..1.0f64),
             prop::option::of(any::<u32>()),
+            prop::option::of(any::<u64>()),
         ),
     )
         .prop_map(
-            |(ellipsoids, coordinates, pieces, (v, f, err, sv))| Recipe {
+            |(ellipsoids, coordinates, pieces, (v, f, err, sv, hint))| Recipe {
                 ellipsoids,
                 coordinates,
                 pieces,
@@ -783,6 +824,7 @@ fn recipe() -> impl Strategy<Value = Recipe> {
                     measured_error: err,
                     measured_hausdorff: err.map(|e| 3.0 * e),
                     suggested_vertices: sv.map(u64::from),
+                    remesh_hint: hint,
                 },
             },
         )

@@ -382,6 +382,51 @@ fn blobs_decode_to_closed_clean_meshes_near_their_source() {
     }
 }
 
+/// A file's remesh hint is the treatment tried first: a blob that meshes clean in the first
+/// attempt meshes clean, once, with another treatment when its file names that one; a hint
+/// that names no treatment, or one not in the sequence, changes nothing.
+#[test]
+fn the_remesh_hint_is_tried_first() {
+    use ellip::remesh::assemble::Treatment;
+    let mesh = source("blob3.obj");
+    let (_, mut rep) = encode(&mesh, blob_ellipsoids("blob3.obj"));
+    let options = options(4000, Scheme::Adaptive);
+    let plain = remesh(&rep, &options).unwrap();
+    assert_clean(&plain, "blob3");
+    assert_eq!(plain.attempts, 1);
+    assert_eq!(plain.treatment, Some(Treatment::FIRST));
+    let stored = Treatment {
+        refined: false,
+        prune: ellip::remesh::refine::Prune::Off,
+        ..Treatment::FIRST
+    };
+    rep.metadata.remesh_hint = Some(stored.code());
+    let hinted = remesh(&rep, &options).unwrap();
+    assert_clean(&hinted, "blob3 hinted");
+    assert_eq!(hinted.attempts, 1);
+    assert_eq!(hinted.treatment, Some(stored));
+    let same = |a: &Remeshed, b: &Remeshed| {
+        a.mesh.positions() == b.mesh.positions() && a.mesh.faces() == b.mesh.faces()
+    };
+    assert!(
+        !same(&hinted, &plain),
+        "the stored arcs are not the refined ones"
+    );
+    // Code 6 has the fourth pruning value; rays where untangling would drop points are not
+    // tried without untangling (they would repeat the closest points').
+    let not_tried = Treatment {
+        untangle: false,
+        radial_where_untangled: true,
+        ..stored
+    };
+    for code in [6, 1 << 7, u64::MAX, not_tried.code()] {
+        rep.metadata.remesh_hint = Some(code);
+        let out = remesh(&rep, &options).unwrap();
+        assert!(same(&out, &plain), "hint {code}");
+        assert_eq!(out.treatment, Some(Treatment::FIRST), "hint {code}");
+    }
+}
+
 #[test]
 fn a_sphere_only_file_gives_a_closed_sphere() {
     let bytes = std::fs::read(root().join("fixtures/ellip/v1/sphere.ellip")).unwrap();

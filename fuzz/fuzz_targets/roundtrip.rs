@@ -21,7 +21,7 @@ struct Input {
     coordinates: Vec<[f64; 3]>,
     pieces: Vec<ArbPiece>,
     bits: u8,
-    metadata: (u64, u64, Option<f64>, Option<f64>, Option<u64>),
+    metadata: (u64, u64, Option<f64>, Option<f64>, Option<u64>, Option<u64>),
 }
 
 fuzz_target!(|input: Input| {
@@ -57,6 +57,7 @@ fuzz_target!(|input: Input| {
             measured_error: input.metadata.3,
             measured_hausdorff: input.metadata.3.map(|e| 2.0 * e),
             suggested_vertices: input.metadata.4,
+            remesh_hint: input.metadata.5,
         },
     };
     let rep = sample::build(&recipe);

@@ -9,9 +9,10 @@ pub const MAGIC: [u8; 8] = *b"\x89ELLIP\r\n";
 /// Major version this crate writes and the only one it reads (spec §10).
 pub const MAJOR: u16 = 1;
 
-/// Minor version this crate writes; files with a higher minor are read, ignoring what they
-/// add (spec §10).
-pub const MINOR: u16 = 0;
+/// Highest minor version this crate writes (1.1 adds `META`'s remesh hint); files with a
+/// higher minor are read, ignoring what they add (spec §10). A file is written with the
+/// lowest minor that holds its content.
+pub const MINOR: u16 = 1;
 
 /// Header size in bytes: magic 8, major 2, minor 2, flags 4, total length 8, CRC-32 4.
 pub const HEADER_LEN: usize = 28;

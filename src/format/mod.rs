@@ -107,7 +107,8 @@ pub struct FileSummary {
 }
 
 /// Encodes `rep` (spec §6): validates it, drops pool points no arc uses, renumbers the pool
-/// in order of first use along the arcs, quantises it, and writes a version 1.0 file.
+/// in order of first use along the arcs, quantises it, and writes a version 1.0 file (1.1
+/// when the metadata holds a remesh hint, spec §6.1).
 ///
 /// Ellipsoids are stored in binary32 when that is exact or moves their surface by at most
 /// L·2^−(bits+3), L the pool's bounding-box diagonal — a quarter of the grid's own worst
@@ -156,7 +157,7 @@ pub fn encode(rep: &Representation, options: &EncodeOptions) -> Result<Vec<u8>, 
         RawSection::compressed(TAG_PNTS, true, &points)?,
         RawSection::compressed(TAG_CYCL, true, &sections::write_cycles(rep)?)?,
     ];
-    write_container(MAJOR, MINOR, 0, &sections)
+    write_container(MAJOR, sections::meta_minor(&rep.metadata), 0, &sections)
 }
 
 /// Decodes a file (spec §3–8) within `limits`.
@@ -264,7 +265,7 @@ fn decode_with_details(
         None => Metadata::default(),
         Some(raw) => {
             let mut r = Reader::new(TAG_META, &raw);
-            let m = sections::read_meta(&mut r)?;
+            let m = sections::read_meta(&mut r, container.minor)?;
             finish(r)?;
             m
         }

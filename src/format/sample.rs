@@ -24,6 +24,7 @@ pub fn sphere() -> Representation {
             measured_error: None,
             measured_hausdorff: None,
             suggested_vertices: Some(642),
+            remesh_hint: None,
         },
     }
 }
@@ -71,8 +72,18 @@ pub fn two_hemispheres() -> Representation {
             measured_error: Some(0.002),
             measured_hausdorff: Some(0.006),
             suggested_vertices: None,
+            remesh_hint: None,
         },
     }
+}
+
+/// [`two_hemispheres`] with a remesh hint (format 1.1): the stored arcs, no pruning,
+/// closest points but along the rays where untangling would drop points
+/// ([`crate::remesh::assemble::Treatment::code`] 37).
+pub fn two_hemispheres_hinted() -> Representation {
+    let mut rep = two_hemispheres();
+    rep.metadata.remesh_hint = Some(37);
+    rep
 }
 
 /// `regions` lunes of a sphere meeting at two junctions (the poles): arc `j` runs from the
@@ -205,6 +216,7 @@ pub fn golden() -> Vec<(&'static str, Representation)> {
         ("two-hemispheres", two_hemispheres()),
         ("three-regions-two-junctions", three_regions_two_junctions()),
         ("bowl-with-border", bowl_with_border()),
+        ("two-hemispheres-hinted", two_hemispheres_hinted()),
     ]
 }
 

@@ -37,6 +37,13 @@ struct MetaWire {
     measured_hausdorff: Option<f64>,
 }
 
+/// The lowest minor version that holds `m` (spec §10): 1 with a remesh hint, else 0.
+pub(crate) fn meta_minor(m: &Metadata) -> u16 {
+    u16::from(m.remesh_hint.is_some())
+}
+
+/// The META payload of a file of minor version [`meta_minor`]`(m)`: from 1.1 on, the remesh
+/// hint follows the 1.0 fields.
 pub(crate) fn write_meta(m: &Metadata) -> Result<Vec<u8>, EncodeError> {
     let mut w = Writer::new(TAG_META);
     w.put(&MetaWire {
@@ -47,11 +54,20 @@ pub(crate) fn write_meta(m: &Metadata) -> Result<Vec<u8>, EncodeError> {
         suggested_vertices: m.suggested_vertices,
         measured_hausdorff: m.measured_hausdorff,
     })?;
+    if meta_minor(m) >= 1 {
+        w.put(&m.remesh_hint)?;
+    }
     Ok(w.into_bytes())
 }
 
-pub(crate) fn read_meta(r: &mut Reader<'_>) -> Result<Metadata, DecodeError> {
+/// Reads the META payload of a file of minor version `minor` (the hint from 1.1 on).
+pub(crate) fn read_meta(r: &mut Reader<'_>, minor: u16) -> Result<Metadata, DecodeError> {
     let m: MetaWire = r.get("M0: malformed metadata")?;
+    let remesh_hint = if minor >= 1 {
+        r.get::<Option<u64>>("M0: malformed metadata")?
+    } else {
+        None
+    };
     Ok(Metadata {
         source_vertices: m.source_vertices,
         source_faces: m.source_faces,
@@ -59,6 +75,7 @@ pub(crate) fn read_meta(r: &mut Reader<'_>) -> Result<Metadata, DecodeError> {
         measured_error: m.measured_error,
         suggested_vertices: m.suggested_vertices,
         measured_hausdorff: m.measured_hausdorff,
+        remesh_hint,
     })
 }
 

@@ -319,9 +319,11 @@ fn keep_better(best: &mut Option<Remeshed>, out: Remeshed) {
     }
 }
 
-/// [`assemble`] without subdivision: every vertex placed by the scheme (the attempts below,
-/// counted in `made`). With `leave_out`, a region that fails is left out of the attempt
-/// instead of ending it.
+/// [`assemble`] without subdivision: every vertex placed by the scheme, with each
+/// [`Treatment`] in turn (the file's hint first; counted in `made`) until one is clean;
+/// otherwise the best mesh is kept (the fewest regions left out, then sound topology, then
+/// the fewest degenerate and flipped triangles, then the earliest), else the last error.
+/// With `leave_out`, a region that fails is left out of the attempt instead of ending it.
 fn assemble_unsubdivided(
     rep: &Representation,
     options: &RemeshOptions,
@@ -332,98 +334,44 @@ fn assemble_unsubdivided(
     let settings = prepared.settings;
     let mut plan = prepared.plan(rep, options);
     plan.leave_out = leave_out;
-    // Attempts, in order: refined arcs, pruned where the chord is narrow (a chord across a
-    // thin part can turn a face over); the stored arcs, pruned the same way (refined points
-    // off the stored polyline can make loops cross where arcs meet at sharp angles or where
-    // the fitted ellipsoids meet far from the stored boundary); both pruned everywhere (a
-    // kept ear can leave a triangle in both regions; not made when that prunes nothing
-    // more); the stored arcs as they are (pruning can shortcut a corner across a
-    // neighbouring arc); and the same without untangling; each with the projections
-    // below; last, the first with every chart's pole kept from crossing the boundary
-    // (PoleWalk::Uncrossed: a region that is its ellipsoid but for a small hole can
-    // otherwise be charted as its hole). A clean mesh ends the search;
-    // otherwise the best mesh is kept (the fewest regions left out, then sound topology,
-    // then the fewest degenerate and flipped triangles, then the earliest), else the last
-    // error.
-    let stored = RefineSettings {
-        max_new_points: 0,
-        ..settings
-    };
-    let pruned = |s: RefineSettings, prune| RefineSettings { prune, ..s };
-    // An attempt equal to an earlier one (the stored arcs are the refined ones when nothing
-    // is refined) is not made.
-    let mut treatments: Vec<(RefineSettings, bool)> = Vec::new();
-    for treatment in [
-        (settings, true),
-        (stored, true),
-        (pruned(settings, Prune::All), true),
-        (pruned(stored, Prune::All), true),
-        (pruned(stored, Prune::Off), true),
-        (pruned(stored, Prune::Off), false),
-    ] {
-        if !treatments.contains(&treatment) {
-            treatments.push(treatment);
-        }
+    let mut attempts = Treatment::sequence(&settings);
+    // The file's hint first: the treatment that meshed it clean when it was written (at
+    // another budget, as a rule the same one does).
+    let hint = rep.metadata.remesh_hint.and_then(Treatment::from_code);
+    if let Some(i) = hint.and_then(|h| attempts.iter().position(|&t| t == h)) {
+        let hinted = attempts.remove(i);
+        attempts.insert(0, hinted);
     }
-    // Each with the boundary reaching the ellipsoids at their closest points; then so,
-    // except for the regions whose loops cross that way and not along the rays from their
-    // ellipsoids' centres; then along the rays for every region (section 5.1's radial map,
-    // which suits regions whose boundary lies deep inside a thin ellipsoid better).
     let mut best: Option<Remeshed> = None;
     let mut last_error = None;
-    let attempts = [
-        (Projection::Closest, false),
-        (Projection::Closest, true),
-        (Projection::Radial, false),
-    ]
-    .into_iter()
-    .flat_map(|p| treatments.iter().map(move |a| (p, a)))
-    // Mixed projections only differ where untangling runs; every ear is pruned with the
-    // first projection only (of 190 decodes of 38 files, none came clean from it with the
-    // others, and each is a meshing more for a file that no attempt makes clean).
-    .filter(|&((projection, radial), (attempt, untangle))| {
-        (!radial || *untangle)
-            && (attempt.prune != Prune::All || (projection == Projection::Closest && !radial))
-    });
-    // Last, the first attempt with each chart's pole kept from crossing the boundary
-    // (PoleWalk::Uncrossed): it mends charts the free walk turns into their holes, but
-    // changes some that were sound.
-    let mut attempts: Vec<_> = attempts.map(|(p, a)| (p, PoleWalk::Free, a)).collect();
-    if let Some(first) = treatments.first() {
-        attempts.push(((Projection::Closest, false), PoleWalk::Uncrossed, first));
-    }
     if leave_out {
         // Meshing every attempt with regions left out would cost a whole mesh each: only
         // those whose charts fail for the fewest regions are meshed.
-        let mut counts: Vec<(usize, usize)> = Vec::new();
-        for (i, &((projection, radial_where_untangled), pole_walk, (attempt, untangle))) in
-            attempts.iter().enumerate()
-        {
-            plan.projection = projection;
-            plan.radial_where_untangled = radial_where_untangled;
-            plan.pole_walk = pole_walk;
-            if let Ok((faults, true)) = plan.faults(attempt, *untangle) {
-                counts.push((faults.len(), i));
+        let mut counts: Vec<(usize, Treatment)> = Vec::new();
+        for &treatment in &attempts {
+            plan.treat(treatment);
+            if let Ok((faults, true)) =
+                plan.faults(&treatment.settings(&settings), treatment.untangle)
+            {
+                counts.push((faults.len(), treatment));
             }
         }
         let fewest = counts.iter().map(|&(n, _)| n).min();
         attempts = counts
             .iter()
             .filter(|&&(n, _)| Some(n) == fewest)
-            .map(|&(_, i)| attempts[i])
+            .map(|&(_, t)| t)
             .collect();
     }
-    for ((projection, radial_where_untangled), pole_walk, (attempt, untangle)) in attempts {
-        plan.projection = projection;
-        plan.radial_where_untangled = radial_where_untangled;
-        plan.pole_walk = pole_walk;
-        let meshed = plan.mesh(attempt, *untangle);
+    for treatment in attempts {
+        plan.treat(treatment);
+        let meshed = plan.mesh(&treatment.settings(&settings), treatment.untangle);
         *made += usize::from(!matches!(meshed, Ok(None)));
         match meshed {
             Ok(None) => {}
-            Ok(Some(out)) => {
-                let c = out.check;
-                if c.is_clean() {
+            Ok(Some(mut out)) => {
+                out.treatment = Some(treatment);
+                if out.check.is_clean() {
                     return Ok(out);
                 }
                 keep_better(&mut best, out);
@@ -438,6 +386,204 @@ fn assemble_unsubdivided(
         (None, None) => Err(RemeshError::Geometry {
             what: "no meshing attempt was made",
         }),
+    }
+}
+
+/// How one meshing attempt treats the boundary: which points the arcs keep, how the
+/// regions' loops reach their charts, where each chart's pole may go. [`assemble`] tries
+/// them in the order of [`Treatment::sequence`] until one meshes clean; the file can name
+/// the one that did when it was written ([`Treatment::code`], stored as
+/// [`crate::representation::Metadata::remesh_hint`], spec §6.1), and that one is tried
+/// first.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Treatment {
+    /// The arcs refined on the intersection curves of their ellipsoids ([`refine_arcs`]);
+    /// else as stored.
+    pub refined: bool,
+    /// Which double ears are pruned.
+    pub prune: Prune,
+    /// Whether loops that cross in their charts are untangled by dropping points.
+    pub untangle: bool,
+    /// How boundary points reach their region's ellipsoid in its chart:
+    /// [`Projection::Closest`] or [`Projection::Radial`].
+    pub projection: Projection,
+    /// With untangling and closest points, a region whose loops cross in its chart and do
+    /// not along the rays from its ellipsoid's centre is charted along the rays instead.
+    pub radial_where_untangled: bool,
+    /// How each chart's pole is placed.
+    pub pole_walk: PoleWalk,
+}
+
+impl Treatment {
+    /// The first attempt: refined arcs pruned where the chord is narrow, untangled,
+    /// reaching the ellipsoids at their closest points, poles free. Code 0.
+    pub const FIRST: Treatment = Treatment {
+        refined: true,
+        prune: Prune::Narrow,
+        untangle: true,
+        projection: Projection::Closest,
+        radial_where_untangled: false,
+        pole_walk: PoleWalk::Free,
+    };
+
+    /// The treatments [`assemble`] tries, in order. Refined arcs, pruned where the chord
+    /// is narrow (a chord across a thin part can turn a face over); the stored arcs, pruned
+    /// the same way (refined points off the stored polyline can make loops cross where
+    /// arcs meet at sharp angles or where the fitted ellipsoids meet far from the stored
+    /// boundary); both pruned everywhere (a kept ear can leave a triangle in both regions;
+    /// not made when that prunes nothing more, [`Plan::pieces`]); the stored arcs as they
+    /// are (pruning can shortcut a corner across a neighbouring arc); and the same without
+    /// untangling. A treatment whose arcs are another's (the stored arcs are the refined
+    /// ones when `settings` refines nothing) is left out. Each with the boundary reaching
+    /// the ellipsoids at their closest points; then so, except for the regions whose loops
+    /// cross that way and not along the rays from their ellipsoids' centres; then along the
+    /// rays for every region (section 5.1's radial map, which suits regions whose boundary
+    /// lies deep inside a thin ellipsoid better). Mixed projections only differ where
+    /// untangling runs; every ear is pruned with the first projection only (of 190 decodes
+    /// of 38 files, none came clean from it with the others, and each is a meshing more for
+    /// a file that no attempt makes clean). Last, the first with each chart's pole kept from
+    /// crossing the boundary ([`PoleWalk::Uncrossed`]): it mends charts the free walk turns
+    /// into their holes, but changes some that were sound.
+    pub fn sequence(settings: &RefineSettings) -> Vec<Treatment> {
+        let mut arcs: Vec<Treatment> = Vec::new();
+        for (refined, prune, untangle) in [
+            (true, Prune::Narrow, true),
+            (false, Prune::Narrow, true),
+            (true, Prune::All, true),
+            (false, Prune::All, true),
+            (false, Prune::Off, true),
+            (false, Prune::Off, false),
+        ] {
+            let t = Treatment {
+                refined,
+                prune,
+                untangle,
+                ..Treatment::FIRST
+            };
+            let same = |u: &Treatment| {
+                u.untangle == t.untangle && u.settings(settings) == t.settings(settings)
+            };
+            if !arcs.iter().any(same) {
+                arcs.push(t);
+            }
+        }
+        let mut sequence: Vec<Treatment> = [
+            (Projection::Closest, false),
+            (Projection::Closest, true),
+            (Projection::Radial, false),
+        ]
+        .into_iter()
+        .flat_map(|(projection, radial_where_untangled)| {
+            arcs.iter().map(move |&t| Treatment {
+                projection,
+                radial_where_untangled,
+                ..t
+            })
+        })
+        .filter(|t| {
+            (!t.radial_where_untangled || t.untangle)
+                && (t.prune != Prune::All
+                    || (t.projection == Projection::Closest && !t.radial_where_untangled))
+        })
+        .collect();
+        if let Some(&first) = arcs.first() {
+            sequence.push(Treatment {
+                pole_walk: PoleWalk::Uncrossed,
+                ..first
+            });
+        }
+        sequence
+    }
+
+    /// The refinement this treatment asks of `settings` (the first attempt's).
+    fn settings(&self, settings: &RefineSettings) -> RefineSettings {
+        RefineSettings {
+            max_new_points: if self.refined {
+                settings.max_new_points
+            } else {
+                0
+            },
+            prune: self.prune,
+            ..*settings
+        }
+    }
+
+    /// The treatment as a number (spec §12): bit 0 set for the stored arcs (not refined);
+    /// bits 1–2 the pruning (0 narrow ears, 1 every ear, 2 none); bit 3 set without
+    /// untangling; bit 4 set for the rays from the centres (else closest points); bit 5 set
+    /// for the rays only where untangling would drop points; bit 6 set for poles kept from
+    /// crossing the boundary. [`Treatment::FIRST`] is 0.
+    pub fn code(&self) -> u64 {
+        let prune = match self.prune {
+            Prune::Narrow => 0,
+            Prune::All => 1,
+            Prune::Off => 2,
+        };
+        u64::from(!self.refined)
+            | prune << 1
+            | u64::from(!self.untangle) << 3
+            | u64::from(self.projection == Projection::Radial) << 4
+            | u64::from(self.radial_where_untangled) << 5
+            | u64::from(self.pole_walk == PoleWalk::Uncrossed) << 6
+    }
+
+    /// The treatment a [`Treatment::code`] names; `None` for a number that names none
+    /// (a hint this decoder does not know is ignored).
+    pub fn from_code(code: u64) -> Option<Treatment> {
+        if code >= 1 << 7 {
+            return None;
+        }
+        let bit = |i: u32| code >> i & 1 == 1;
+        let prune = match code >> 1 & 3 {
+            0 => Prune::Narrow,
+            1 => Prune::All,
+            2 => Prune::Off,
+            _ => return None,
+        };
+        Some(Treatment {
+            refined: !bit(0),
+            prune,
+            untangle: !bit(3),
+            projection: if bit(4) {
+                Projection::Radial
+            } else {
+                Projection::Closest
+            },
+            radial_where_untangled: bit(5),
+            pole_walk: if bit(6) {
+                PoleWalk::Uncrossed
+            } else {
+                PoleWalk::Free
+            },
+        })
+    }
+}
+
+impl std::fmt::Display for Treatment {
+    /// In words, e.g. "stored arcs, no ears pruned, untangled, closest points (rays where
+    /// untangling would drop points)".
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let arcs = if self.refined { "refined" } else { "stored" };
+        let prune = match self.prune {
+            Prune::Narrow => "narrow ears pruned",
+            Prune::All => "every ear pruned",
+            Prune::Off => "no ears pruned",
+        };
+        let untangled = if self.untangle {
+            "untangled"
+        } else {
+            "not untangled"
+        };
+        let projection = match (self.projection, self.radial_where_untangled) {
+            (Projection::Radial, _) => "rays from the centres",
+            (_, true) => "closest points (rays where untangling would drop points)",
+            _ => "closest points",
+        };
+        write!(f, "{arcs} arcs, {prune}, {untangled}, {projection}")?;
+        if self.pole_walk == PoleWalk::Uncrossed {
+            write!(f, ", poles kept from crossing the boundary")?;
+        }
+        Ok(())
     }
 }
 
@@ -462,6 +608,13 @@ struct Plan<'a> {
 }
 
 impl Plan<'_> {
+    /// Charts the regions as `treatment` says from now on.
+    fn treat(&mut self, treatment: Treatment) {
+        self.projection = treatment.projection;
+        self.radial_where_untangled = treatment.radial_where_untangled;
+        self.pole_walk = treatment.pole_walk;
+    }
+
     /// Refines the arcs with `settings` (and untangles them if asked), triangulates every
     /// piece and joins them. `None` when the attempt would repeat an earlier one
     /// ([`Plan::pieces`]).
@@ -1586,6 +1739,7 @@ pub(super) fn measured(rep: &Representation, mesh: Mesh, face_regions: Vec<u32>)
         check,
         omitted: Vec::new(),
         attempts: 0,
+        treatment: None,
     }
 }
 
@@ -1994,6 +2148,41 @@ mod tests {
         assert_eq!(without_spikes(long), vec![5000, 0, 5001]);
         // No spike: unchanged.
         assert_eq!(without_spikes(vec![0, 1, 2, 3]), vec![0, 1, 2, 3]);
+    }
+
+    #[test]
+    fn treatments_are_named_by_distinct_codes() {
+        let settings = RefineSettings {
+            spacing: 0.1,
+            tolerance: 0.01,
+            max_new_points: 100,
+            prune: Prune::Narrow,
+        };
+        let sequence = Treatment::sequence(&settings);
+        assert_eq!(sequence.first(), Some(&Treatment::FIRST));
+        assert_eq!(Treatment::FIRST.code(), 0);
+        let mut codes: Vec<u64> = sequence.iter().map(Treatment::code).collect();
+        for (t, &code) in sequence.iter().zip(&codes) {
+            assert!(code < 128, "{t}");
+            assert_eq!(Treatment::from_code(code), Some(*t), "{code}");
+        }
+        codes.sort_unstable();
+        codes.dedup();
+        assert_eq!(codes.len(), sequence.len());
+        // Every 7-bit code but the fourth pruning value names a treatment; nothing else does.
+        for code in 0..512u64 {
+            let named = Treatment::from_code(code);
+            assert_eq!(named.is_some(), code < 128 && code >> 1 & 3 != 3, "{code}");
+            assert!(named.is_none_or(|t| t.code() == code), "{code}");
+        }
+        assert_eq!(Treatment::from_code(u64::MAX), None);
+        // Without refinement the stored arcs are the refined ones: not tried twice.
+        let unrefined = Treatment::sequence(&RefineSettings {
+            max_new_points: 0,
+            ..settings
+        });
+        assert!(unrefined.len() < sequence.len());
+        assert!(unrefined.iter().all(|t| t.refined || t.prune == Prune::Off));
     }
 
     #[test]

@@ -180,6 +180,10 @@ pub struct Remeshed {
     /// each fallback (another boundary treatment or projection, another budget, regions
     /// left out) counts one more ([`assemble::assemble`]). Decoding time grows with it.
     pub attempts: usize,
+    /// The boundary treatment the mesh was made with (of the coarse mesh, when subdivided);
+    /// `None` for a mesh not made by [`remesh`]. A file whose
+    /// [`crate::representation::Metadata::remesh_hint`] names it meshes this way first.
+    pub treatment: Option<assemble::Treatment>,
 }
 
 /// Why a representation could not be remeshed.

@@ -56,6 +56,7 @@ pub fn subdivide(
     let Remeshed {
         mut mesh,
         mut face_regions,
+        treatment,
         ..
     } = coarse;
     for _ in 0..levels {
@@ -71,7 +72,10 @@ pub fn subdivide(
         mesh = Mesh::new(positions, faces)?;
         face_regions = regions;
     }
-    Ok(measured(rep, mesh, face_regions))
+    Ok(Remeshed {
+        treatment,
+        ..measured(rep, mesh, face_regions)
+    })
 }
 
 /// One level: the positions (old ones first, then the new points in use, in order of their
