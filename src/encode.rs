@@ -18,6 +18,7 @@ use crate::compare::Bvh;
 use crate::ellipsoid::Ellipsoid;
 use crate::format::{self, simplify::DEFAULT_RELATIVE_TOLERANCE, EncodeError, EncodeOptions};
 use crate::mesh::Mesh;
+use crate::remesh::assemble::Treatment;
 use crate::remesh::Remeshed;
 use crate::representation::{InvalidRepresentation, Metadata, Representation};
 use crate::segment::proxy::speck_faces;
@@ -56,7 +57,9 @@ pub struct EncodeSettings {
     /// that meshes cleanly but departs from the source by more than [`MAX_DEPARTURE`] of
     /// the diagonal beyond what its ellipsoid misses; a mesh in more pieces than the source
     /// counts as unsound, its extra pieces' regions to blame. Each segmentation is checked
-    /// once.
+    /// once. A file that decodes clean only with a later boundary treatment than the
+    /// decoder's first names it ([`Metadata::remesh_hint`], format 1.1), so that decoders
+    /// mesh it once.
     /// Failing that, the best file seen is kept (see [`encode_mesh`]). The file may then
     /// hold more or fewer regions than asked for ([`Encoded::verification`] says how many
     /// rounds it took and what, if anything, is still wrong).
@@ -289,15 +292,21 @@ fn encode_checked(
     // Files written and checked: the first, then one a round of mending that got that far.
     let mut verified = 0usize;
     loop {
-        let (stored, boundary_points) = match represent(mesh, &segmentation, settings, &fidelity) {
-            Ok(r) => r,
-            // A split whose boundaries the representation cannot hold (a bug of the boundary
-            // stage, seen once on a real mesh): the encodings before it stand.
-            Err(EncodeMeshError::Representation(_)) if best.is_some() => break,
-            Err(e) => return Err(e),
-        };
-        let verdict = verify(&stored.bytes, &source, &segmentation.labels)?;
+        let (mut stored, boundary_points) =
+            match represent(mesh, &segmentation, settings, &fidelity) {
+                Ok(r) => r,
+                // A split whose boundaries the representation cannot hold (a bug of the boundary
+                // stage, seen once on a real mesh): the encodings before it stand.
+                Err(EncodeMeshError::Representation(_)) if best.is_some() => break,
+                Err(e) => return Err(e),
+            };
+        let (verdict, treatment) = verify(&stored.bytes, &source, &segmentation.labels)?;
         verified += 1;
+        // A file that decodes clean only with a later treatment than the decoder's first
+        // names it, so that decoders mesh it once instead of trying each before it.
+        if let Some(t) = treatment.filter(|&t| t != Treatment::FIRST) {
+            stored.hint(t)?;
+        }
         let score = verdict.score();
         let rank = score.0;
         let (blamed, problem) = match verdict {
@@ -662,8 +671,13 @@ pub const MAX_DEPARTURE: f64 = 0.1;
 /// is clean as far as the source allows
 /// ([`crate::remesh::assemble::MeshCheck::is_clean_from`]) and keeps to the source
 /// (`Source::far_regions`, with the source's faces in regions by `labels`) and, if not,
-/// which regions to blame.
-fn verify(bytes: &[u8], source: &Source, labels: &[u32]) -> Result<Verdict, EncodeMeshError> {
+/// which regions to blame; with the treatment a clean mesh was made with (clean and far
+/// alike).
+fn verify(
+    bytes: &[u8],
+    source: &Source,
+    labels: &[u32],
+) -> Result<(Verdict, Option<Treatment>), EncodeMeshError> {
     use crate::remesh::assemble::{problem_regions, region_faults};
     use crate::remesh::{remesh, RemeshError, RemeshOptions};
     let source_manifold = source.manifold;
@@ -689,9 +703,12 @@ fn verify(bytes: &[u8], source: &Source, labels: &[u32]) -> Result<Verdict, Enco
                     cut: f.crossing.and_then(cut_between),
                 })
                 .unwrap_or(Split { region, cut: None });
-            return Ok(Verdict::Fails(
-                vec![split],
-                format!("does not decode: region {region}: {what}"),
+            return Ok((
+                Verdict::Fails(
+                    vec![split],
+                    format!("does not decode: region {region}: {what}"),
+                ),
+                None,
             ));
         }
         Err(e) => return Err(e.into()),
@@ -723,7 +740,7 @@ fn verify(bytes: &[u8], source: &Source, labels: &[u32]) -> Result<Verdict, Enco
             bad_triangles: c.flipped + c.degenerate,
             distance: departure,
         };
-        return Ok(match extra {
+        let verdict = match extra {
             Some((regions, pieces)) if c.is_clean_from(source_manifold) => Verdict::Dirty(
                 faults,
                 blame(regions),
@@ -737,9 +754,10 @@ fn verify(bytes: &[u8], source: &Source, labels: &[u32]) -> Result<Verdict, Enco
                 blame(problem_regions(&representation, &out, source_manifold)),
                 format!("decodes with {}", c.faults()),
             ),
-        });
+        };
+        return Ok((verdict, None));
     }
-    Ok(match far.first() {
+    let verdict = match far.first() {
         None => Verdict::Clean,
         Some(&(region, distance)) => Verdict::Far(
             departure,
@@ -750,7 +768,8 @@ fn verify(bytes: &[u8], source: &Source, labels: &[u32]) -> Result<Verdict, Enco
                 100.0 * distance / source.diagonal
             ),
         ),
-    })
+    };
+    Ok((verdict, out.treatment))
 }
 
 /// The plane halfway between two crossing loop edges, facing from one to the other: the
@@ -926,6 +945,16 @@ struct Stored {
     representation: Representation,
     removed_points: usize,
     bits: u8,
+}
+
+impl Stored {
+    /// Names the treatment the file meshes clean with in its metadata (a remesh hint,
+    /// spec §6.1) and writes it again: only `META` changes.
+    fn hint(&mut self, treatment: Treatment) -> Result<(), EncodeMeshError> {
+        self.representation.metadata.remesh_hint = Some(treatment.code());
+        self.bytes = format::encode(&self.representation, &EncodeOptions { bits: self.bits })?;
+        Ok(())
+    }
 }
 
 /// Simplifies the arcs (but those marked in `exact`) with what the grid of `bits` leaves of

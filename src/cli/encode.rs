@@ -46,7 +46,9 @@ pub struct EncodeArgs {
     /// a boundary that folds in its chart is stored at the mesh's own points, a small region
     /// is dissolved into its neighbours, another is split, and so is a region decoded a
     /// tenth of the diagonal farther from the mesh than its ellipsoid lies; so the file may
-    /// hold more or fewer regions than -k asks for.
+    /// hold more or fewer regions than -k asks for. A file the decoder meshes clean only
+    /// after its first boundary treatment names the one that works (a remesh hint, 2 bytes),
+    /// so that decoders mesh it once.
     #[arg(long)]
     no_verify: bool,
     /// Print the report as JSON on stdout (not with `-o -`).

@@ -6,6 +6,7 @@ use ellip::ellipsoid::Sign;
 use ellip::format::{consts::MAGIC, decode, inspect, Limits};
 use ellip::import::{read_mesh, RepairReport};
 use ellip::mesh::curvature::mean_curvature;
+use ellip::remesh::assemble::Treatment;
 use ellip::Mesh;
 use serde::Serialize;
 use std::io::Read;
@@ -233,6 +234,8 @@ struct EllipInfo {
     measured_error: Option<f64>,
     measured_hausdorff: Option<f64>,
     suggested_vertices: Option<u64>,
+    /// The remesh hint (`Treatment::code`), if the file has one.
+    remesh_hint: Option<u64>,
     sections: Vec<SectionInfo>,
 }
 
@@ -290,6 +293,7 @@ fn describe_ellip(path: &Path, bytes: &[u8], json: bool) -> Result<(), CliError>
         measured_error: summary.metadata.measured_error,
         measured_hausdorff: summary.metadata.measured_hausdorff,
         suggested_vertices: summary.metadata.suggested_vertices,
+        remesh_hint: summary.metadata.remesh_hint,
         sections: summary
             .sections
             .iter()
@@ -330,6 +334,12 @@ fn describe_ellip(path: &Path, bytes: &[u8], json: bool) -> Result<(), CliError>
     }
     if let Some(h) = info.measured_hausdorff {
         println!("                Hausdorff {h:.3e}");
+    }
+    if let Some(code) = info.remesh_hint {
+        match Treatment::from_code(code) {
+            Some(t) => println!("remesh hint     {code}: {t}"),
+            None => println!("remesh hint     {code} (unknown to this decoder, ignored)"),
+        }
     }
     println!("regions         {}", info.regions.len());
     println!("  region  sign  radii                                  cycles");
