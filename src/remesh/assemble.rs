@@ -431,7 +431,7 @@ impl Treatment {
     /// the same way (refined points off the stored polyline can make loops cross where
     /// arcs meet at sharp angles or where the fitted ellipsoids meet far from the stored
     /// boundary); both pruned everywhere (a kept ear can leave a triangle in both regions;
-    /// not made when that prunes nothing more, [`Plan::pieces`]); the stored arcs as they
+    /// not made when that prunes nothing more); the stored arcs as they
     /// are (pruning can shortcut a corner across a neighbouring arc); and the same without
     /// untangling. A treatment whose arcs are another's (the stored arcs are the refined
     /// ones when `settings` refines nothing) is left out. Each with the boundary reaching
