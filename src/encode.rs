@@ -671,8 +671,8 @@ pub const MAX_DEPARTURE: f64 = 0.1;
 /// is clean as far as the source allows
 /// ([`crate::remesh::assemble::MeshCheck::is_clean_from`]) and keeps to the source
 /// (`Source::far_regions`, with the source's faces in regions by `labels`) and, if not,
-/// which regions to blame; with the treatment a clean mesh was made with (clean and far
-/// alike).
+/// which regions to blame; with the treatment a mesh clean by the decoder's own check
+/// ([`crate::remesh::assemble::MeshCheck::is_clean`]) was made with (clean and far alike).
 fn verify(
     bytes: &[u8],
     source: &Source,
@@ -769,7 +769,10 @@ fn verify(
             ),
         ),
     };
-    Ok((verdict, out.treatment))
+    // A mesh clean only as far as a non-manifold source allows is not clean to a decoder,
+    // which goes on searching whatever the file names: no hint then.
+    let treatment = out.treatment.filter(|_| c.is_clean());
+    Ok((verdict, treatment))
 }
 
 /// The plane halfway between two crossing loop edges, facing from one to the other: the
