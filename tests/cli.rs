@@ -171,6 +171,40 @@ fn malformed_files_fail_cleanly() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// `info` shows a file's remesh hint in words, and `--json` as its code; a file without one
+/// has none (the golden 1.1 file names the stored arcs, no ears pruned, rays where
+/// untangling would drop points).
+#[test]
+fn info_shows_the_remesh_hint() {
+    let golden = |name: &str| {
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("fixtures/ellip/v1")
+            .join(name)
+            .to_string_lossy()
+            .into_owned()
+    };
+    let hinted = golden("two-hemispheres-hinted.ellip");
+    let text = ellip(&["info", &hinted]);
+    assert!(text.status.success());
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(text.contains(".ellip 1.1"), "{text}");
+    assert!(
+        text.contains("remesh hint     37: stored arcs, no ears pruned, untangled, closest points (rays where untangling would drop points)"),
+        "{text}"
+    );
+    let v: serde_json::Value =
+        serde_json::from_slice(&ellip(&["info", &hinted, "--json"]).stdout).unwrap();
+    assert_eq!(v["remesh_hint"], 37);
+    assert_eq!(v["version"], "1.1");
+    let plain = golden("two-hemispheres.ellip");
+    let text = String::from_utf8_lossy(&ellip(&["info", &plain]).stdout).into_owned();
+    assert!(!text.contains("remesh hint"), "{text}");
+    let v: serde_json::Value =
+        serde_json::from_slice(&ellip(&["info", &plain, "--json"]).stdout).unwrap();
+    assert!(v["remesh_hint"].is_null());
+    assert_eq!(v["version"], "1.0");
+}
+
 #[test]
 fn encode_writes_an_ellip_file_that_info_reads() {
     let dir = temp_dir("encode");
