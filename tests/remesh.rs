@@ -1025,6 +1025,8 @@ fn ellip_decode_writes_a_valid_glb() {
     assert_eq!(v["closed"], true);
     assert_eq!(v["flipped_triangles"], 0);
     assert_eq!(v["meshing_attempts"], 1);
+    // The first treatment, code 0 (what a remesh hint would name).
+    assert_eq!(v["treatment"], 0);
     let n = v["vertices"].as_u64().unwrap();
     assert!(n.abs_diff(3000) <= 30, "{n}");
     let out = ellip(&[

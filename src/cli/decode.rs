@@ -142,6 +142,9 @@ pub struct DecodeReport {
     colored: bool,
     /// How many times the regions were meshed ([`Remeshed::attempts`]).
     meshing_attempts: usize,
+    /// The boundary treatment the mesh was made with ([`Remeshed::treatment`], as
+    /// `Treatment::code`: what a file's remesh hint would name).
+    treatment: Option<u64>,
     seconds: f64,
 }
 
@@ -250,6 +253,7 @@ pub fn remesh_and_write(
         omitted_regions: remeshed.omitted.clone(),
         colored,
         meshing_attempts: remeshed.attempts,
+        treatment: remeshed.treatment.map(|t| t.code()),
         seconds,
     })
 }
