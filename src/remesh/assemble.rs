@@ -141,8 +141,7 @@ struct Prepared {
 }
 
 impl Prepared {
-    /// The first attempt's plan: boundary points reach the ellipsoids at their closest
-    /// points.
+    /// The first attempt's plan ([`Treatment::FIRST`]).
     fn plan<'a>(&'a self, rep: &'a Representation, options: &'a RemeshOptions) -> Plan<'a> {
         Plan {
             rep,
@@ -151,9 +150,8 @@ impl Prepared {
             spacing: self.spacing,
             tolerance: self.tolerance,
             areas: &self.areas,
-            projection: Projection::Closest,
-            radial_where_untangled: false,
-            pole_walk: PoleWalk::Free,
+            settings: self.settings,
+            treatment: Treatment::FIRST,
             leave_out: false,
         }
     }
@@ -220,9 +218,7 @@ pub fn region_faults(
     options: &RemeshOptions,
 ) -> Result<Vec<RegionFault>, RemeshError> {
     let prepared = prepare(rep, options)?;
-    let (faults, _) = prepared
-        .plan(rep, options)
-        .faults(&prepared.settings, true)?;
+    let (faults, _) = prepared.plan(rep, options).faults()?;
     Ok(faults)
 }
 
@@ -331,10 +327,9 @@ fn assemble_unsubdivided(
     made: &mut usize,
 ) -> Result<Remeshed, RemeshError> {
     let prepared = prepare(rep, options)?;
-    let settings = prepared.settings;
     let mut plan = prepared.plan(rep, options);
     plan.leave_out = leave_out;
-    let mut attempts = Treatment::sequence(&settings);
+    let mut attempts = Treatment::sequence(&prepared.settings);
     // The file's hint first: the treatment that meshed it clean when it was written (at
     // another budget, as a rule the same one does).
     let hint = rep.metadata.remesh_hint.and_then(Treatment::from_code);
@@ -349,10 +344,8 @@ fn assemble_unsubdivided(
         // those whose charts fail for the fewest regions are meshed.
         let mut counts: Vec<(usize, Treatment)> = Vec::new();
         for &treatment in &attempts {
-            plan.treat(treatment);
-            if let Ok((faults, true)) =
-                plan.faults(&treatment.settings(&settings), treatment.untangle)
-            {
+            plan.treatment = treatment;
+            if let Ok((faults, true)) = plan.faults() {
                 counts.push((faults.len(), treatment));
             }
         }
@@ -364,8 +357,8 @@ fn assemble_unsubdivided(
             .collect();
     }
     for treatment in attempts {
-        plan.treat(treatment);
-        let meshed = plan.mesh(&treatment.settings(&settings), treatment.untangle);
+        plan.treatment = treatment;
+        let meshed = plan.mesh();
         *made += usize::from(!matches!(meshed, Ok(None)));
         match meshed {
             Ok(None) => {}
@@ -595,41 +588,22 @@ struct Plan<'a> {
     spacing: f64,
     tolerance: Option<f64>,
     areas: &'a [f64],
-    /// How boundary points reach a region's own ellipsoid in its chart.
-    projection: Projection,
-    /// With untangling, a region whose loops cross in its chart and do not along the rays
-    /// from its ellipsoid's centre is charted that way instead of untangled.
-    radial_where_untangled: bool,
-    /// How each chart's pole is placed.
-    pole_walk: PoleWalk,
+    /// The first attempt's refinement, which [`Plan::treatment`] adapts.
+    settings: RefineSettings,
+    /// How this attempt treats the boundary.
+    treatment: Treatment,
     /// A region whose chart or triangulation fails is left out (a hole, counted in
     /// [`MeshCheck::omitted_regions`]) instead of ending the attempt.
     leave_out: bool,
 }
 
 impl Plan<'_> {
-    /// Charts the regions as `treatment` says from now on.
-    fn treat(&mut self, treatment: Treatment) {
-        self.projection = treatment.projection;
-        self.radial_where_untangled = treatment.radial_where_untangled;
-        self.pole_walk = treatment.pole_walk;
-    }
-
-    /// Refines the arcs with `settings` (and untangles them if asked), triangulates every
-    /// piece and joins them. `None` when the attempt would repeat an earlier one
+    /// Refines the arcs (and untangles them) as the treatment says, triangulates every
+    /// piece and joins them. `None` when the attempt would repeat another
     /// ([`Plan::pieces`]).
-    fn mesh(
-        &self,
-        settings: &RefineSettings,
-        untangle_arcs: bool,
-    ) -> Result<Option<Remeshed>, RemeshError> {
+    fn mesh(&self) -> Result<Option<Remeshed>, RemeshError> {
         let mut faults = Vec::new();
-        let Some((positions, pieces)) = self.pieces(
-            settings,
-            untangle_arcs,
-            self.leave_out.then_some(&mut faults),
-        )?
-        else {
+        let Some((positions, pieces)) = self.pieces(self.leave_out.then_some(&mut faults))? else {
             return Ok(None);
         };
         let mut omitted: Vec<u32> = faults.iter().map(|f| f.region).collect();
@@ -690,13 +664,9 @@ impl Plan<'_> {
     /// The regions whose chart or boundary triangulation fails in this attempt, in
     /// increasing order, one fault per region; and whether the attempt has anything to mesh
     /// (some piece, and not a repeat: see [`Plan::mesh`]).
-    fn faults(
-        &self,
-        settings: &RefineSettings,
-        untangle_arcs: bool,
-    ) -> Result<(Vec<RegionFault>, bool), RemeshError> {
+    fn faults(&self) -> Result<(Vec<RegionFault>, bool), RemeshError> {
         let mut faults = Vec::new();
-        let Some((_, pieces)) = self.pieces(settings, untangle_arcs, Some(&mut faults))? else {
+        let Some((_, pieces)) = self.pieces(Some(&mut faults))? else {
             return Ok((Vec::new(), false));
         };
         // Stable: a whole ellipsoid's two halves keep their order.
@@ -709,13 +679,11 @@ impl Plan<'_> {
     /// ([`settle_charts`]). With `faults`, a region whose chart or boundary triangulation
     /// fails is noted there and left out instead of ending the attempt.
     ///
-    /// `None` when the attempt would repeat an earlier one: with [`Prune::All`], no point was
-    /// pruned that [`Prune::Narrow`] keeps (every such attempt comes after its narrow twin); with
-    /// [`Plan::radial_where_untangled`], untangling charted no region radially.
+    /// `None` when the attempt would repeat another, made in its place: with [`Prune::All`],
+    /// no point was pruned that [`Prune::Narrow`] keeps; with
+    /// [`Treatment::radial_where_untangled`], untangling charted no region radially.
     fn pieces(
         &self,
-        settings: &RefineSettings,
-        untangle_arcs: bool,
         mut faults: Option<&mut Vec<RegionFault>>,
     ) -> Result<Option<Pieces>, RemeshError> {
         let Plan {
@@ -723,25 +691,29 @@ impl Plan<'_> {
             options,
             spacing,
             areas,
+            treatment,
             ..
         } = *self;
-        let mut refined = refine_arcs(rep, settings);
+        let settings = treatment.settings(&self.settings);
+        let mut refined = refine_arcs(rep, &settings);
         if settings.prune == Prune::All && refined.wide_ears == 0 {
             return Ok(None);
         }
         let mut charts = Vec::new();
-        let mut projections = vec![self.projection; rep.region_count()];
-        if untangle_arcs {
+        let mut projections = vec![treatment.projection; rep.region_count()];
+        if treatment.untangle {
             (charts, projections) = untangle(
                 rep,
                 &mut refined.arcs,
                 &refined.points,
-                self.projection,
-                self.radial_where_untangled,
-                self.pole_walk,
+                treatment.projection,
+                treatment.radial_where_untangled,
+                treatment.pole_walk,
             );
         }
-        if self.radial_where_untangled && projections.iter().all(|&p| p == self.projection) {
+        if treatment.radial_where_untangled
+            && projections.iter().all(|&p| p == treatment.projection)
+        {
             return Ok(None);
         }
         let mut pool = Pool::new(&refined.points);
@@ -807,14 +779,14 @@ impl Plan<'_> {
                 .and_then(Option::take)
                 .filter(|(l, _)| *l == loop_points)
                 .map(|(_, chart)| Ok(chart));
-            let projection = projections.get(r).copied().unwrap_or(self.projection);
+            let projection = projections.get(r).copied().unwrap_or(treatment.projection);
             let chart = known.unwrap_or_else(|| {
                 RegionChart::with_projection(
                     region,
                     &stand_in,
                     &loop_points,
                     projection_onto(&stand_in, ellipsoid, projection),
-                    self.pole_walk,
+                    treatment.pole_walk,
                 )
             });
             let Some(chart) = noted(chart, faults.as_deref_mut())? else {
