@@ -37,8 +37,8 @@ pub struct EncodeArgs {
     /// error (shown by `ellip info`).
     #[arg(long)]
     report: bool,
-    /// Rate control: the lowest error that fits in this many bytes (searches -k; implies
-    /// --report).
+    /// Rate control: the lowest error that fits in this many bytes (searches -k, then the
+    /// boundary tolerance at the K that no longer fits; implies --report).
     #[arg(long, value_name = "N")]
     max_bytes: Option<usize>,
     /// Write the segmentation as it is, without decoding the file to check it. By default
