@@ -60,7 +60,11 @@ for mesh in "$@"; do
     start=$(date +%s.%N)
     if "$ellip" encode "$mesh" --tolerance "$t" -o "$out.ellip" --json --quiet > "$out.json" 2> "$out.err"; then
       seconds=$(echo "$(date +%s.%N) - $start" | bc)
-      "$ellip" decode "$out.ellip" -o "$out.obj" --quiet
+      if ! "$ellip" decode "$out.ellip" -o "$out.obj" --quiet; then
+        failed=$((failed + 1))
+        echo "| $name | RMS ≤ $t | | | | | | | NO: the file does not decode |"
+        continue
+      fi
       read -r metro hausdorff < <("$venv/bin/python" "$work/metro.py" "$mesh" "$out.obj")
       read -r k measured < <("$venv/bin/python" "$work/report.py" "$out.json")
       met=$(echo "$metro <= $t * (1 + $slack)" | bc -l)

@@ -199,6 +199,27 @@ fn rate_control_meets_an_error_target_and_a_byte_budget() {
         assert!(rc.bytes.len() <= budget, "{} > {budget}", rc.bytes.len());
         let stored = decode(&rc.bytes, &Limits::default()).unwrap();
         assert!(stored.metadata.measured_hausdorff.is_some());
+        // The smallest K that no longer fits was tried with coarser boundaries (a file with
+        // more regions may fit that way).
+        let default = settings(4).simplify_tolerance;
+        if let Some(flip) = rc
+            .probes
+            .iter()
+            .filter(|p| p.boundary_tolerance == default && p.bytes > budget)
+            .map(|p| p.regions)
+            .min()
+        {
+            let factors = if flip == 1 { [4.0, 16.0] } else { [2.0, 4.0] };
+            for factor in factors {
+                assert!(
+                    rc.probes
+                        .iter()
+                        .any(|p| p.regions == flip && p.boundary_tolerance == default * factor),
+                    "K = {flip} at {factor}x the boundary tolerance not tried: {:?}",
+                    rc.probes
+                );
+            }
+        }
         // No probe that fitted had a lower error.
         for p in &rc.probes {
             if p.bytes <= budget {
