@@ -32,6 +32,7 @@
 use super::chart::RegionChart;
 use crate::ellipsoid::Ellipsoid;
 use glam::{DVec2, DVec3};
+use std::cell::RefCell;
 
 /// How wide, in multiples of the offset it fades, the band is over which a boundary point's
 /// offset blends into the ellipsoid: the displaced surface's slope against the ellipsoid is
@@ -201,6 +202,12 @@ pub struct OffsetBlend {
     first_column: [i64; 2],
     /// How many columns along y.
     columns_y: i64,
+}
+
+thread_local! {
+    /// One bit per segment of the blend [`OffsetBlend::height`] is asked of: the segments
+    /// near the point, in increasing order without sorting them (all clear between calls).
+    static NEAR: RefCell<Vec<u64>> = const { RefCell::new(Vec::new()) };
 }
 
 /// Most cell entries of a blend beyond four per segment: a boundary far longer than its
@@ -375,21 +382,16 @@ impl OffsetBlend {
         {
             *run = self.run(centre[0] + dx, centre[1] + dy, centre[2]);
         }
-        let count: usize = runs.iter().map(|(from, to)| to - from).sum();
-        if count == 0 {
+        if runs.iter().all(|(from, to)| from == to) {
             return 0.0;
         }
-        let mut near: Vec<u32> = Vec::with_capacity(count);
-        for &(from, to) in &runs {
-            near.extend(self.cells[from..to].iter().map(|&(_, s)| s));
-        }
-        near.sort_unstable();
-        near.dedup();
         let mut nearest = f64::INFINITY;
         let mut weights = 0.0;
         let mut sum = 0.0;
+        let mut exact = None;
         let beyond = self.reach * self.reach * (1.0 + 1e-12);
-        for s in near.iter().filter_map(|&i| self.segments.get(i as usize)) {
+        // A segment's weight and height added in; its height when `x` lies on it.
+        let mut weigh = |s: &Segment| -> Option<f64> {
             let [a, b] = s.foot;
             let ab = b - a;
             let length2 = ab.length_squared();
@@ -401,21 +403,57 @@ impl OffsetBlend {
             let d2 = (a + ab * t - x).length_squared();
             // Clearly beyond the reach, without the square root (the cells hold many such).
             if d2 > beyond {
-                continue;
+                return None;
             }
             let d = d2.sqrt();
             let height = s.height[0] + (s.height[1] - s.height[0]) * t;
             if d <= 0.0 {
-                return height;
+                return Some(height);
             }
             if d >= self.reach {
-                continue;
+                return None;
             }
             nearest = nearest.min(d);
             let taper = 1.0 - (d / self.reach) * (d / self.reach);
             let w = length2.sqrt() * taper * taper / (d * d * d);
             weights += w;
             sum += w * height;
+            None
+        };
+        // The segments of the runs, each once, in increasing order (the order of the sums):
+        // marked in a bitmap and read back word by word, each word cleared as it is read.
+        NEAR.with_borrow_mut(|bits| {
+            let words = self.segments.len().div_ceil(64);
+            if bits.len() < words {
+                bits.resize(words, 0);
+            }
+            let (mut low, mut high) = (usize::MAX, 0);
+            for &(from, to) in &runs {
+                for &(_, segment) in self.cells.get(from..to).unwrap_or_default() {
+                    let word = segment as usize / 64;
+                    if let Some(w) = bits.get_mut(word) {
+                        *w |= 1 << (segment % 64);
+                        (low, high) = (low.min(word), high.max(word));
+                    }
+                }
+            }
+            for word in low..=high {
+                let Some(w) = bits.get_mut(word) else {
+                    break;
+                };
+                let mut marked = std::mem::take(w);
+                while marked != 0 {
+                    let segment = word * 64 + marked.trailing_zeros() as usize;
+                    marked &= marked - 1;
+                    // Past an exact hit the rest is only cleared.
+                    if exact.is_none() {
+                        exact = self.segments.get(segment).and_then(&mut weigh);
+                    }
+                }
+            }
+        });
+        if let Some(height) = exact {
+            return height;
         }
         if !(nearest < self.max_band && weights > 0.0 && weights.is_finite()) {
             return 0.0;
@@ -463,6 +501,60 @@ mod tests {
         assert_eq!(b.height(DVec3::new(0.5, 0.31, 0.0)), 0.0);
         let inside = b.height(DVec3::new(0.5, 0.15, 0.0));
         assert!(inside > 0.0 && inside < 0.1, "{inside}");
+    }
+
+    /// [`OffsetBlend::height`] by scanning every segment in order, without the cells.
+    fn height_by_scan(b: &OffsetBlend, x: DVec3) -> f64 {
+        let (mut nearest, mut weights, mut sum) = (f64::INFINITY, 0.0, 0.0);
+        for s in &b.segments {
+            let [p, q] = s.foot;
+            let pq = q - p;
+            let t = ((x - p).dot(pq) / pq.length_squared()).clamp(0.0, 1.0);
+            let d = (p + pq * t - x).length();
+            let height = s.height[0] + (s.height[1] - s.height[0]) * t;
+            if d <= 0.0 {
+                return height;
+            }
+            if d < b.reach {
+                nearest = nearest.min(d);
+                let taper = 1.0 - (d / b.reach) * (d / b.reach);
+                let w = pq.length() * taper * taper / (d * d * d);
+                weights += w;
+                sum += w * height;
+            }
+        }
+        if !(nearest < b.max_band && weights > 0.0) {
+            return 0.0;
+        }
+        let height = sum / weights;
+        let band = (BLEND_REACH * height.abs()).max(b.min_band);
+        let s = (nearest / band).min(1.0);
+        height * (1.0 - s * s * (3.0 - 2.0 * s))
+    }
+
+    #[test]
+    fn the_cells_give_the_heights_of_a_scan_of_every_segment_bit_for_bit() {
+        // A loop of 200 segments, each with its own height so that the order of the sum
+        // shows; the cells find the segments within the reach and visit them in order.
+        let feet: Vec<DVec3> = (0..200)
+            .map(|k| {
+                let t = k as f64 / 200.0 * std::f64::consts::TAU;
+                DVec3::new(t.cos(), t.sin(), 0.0)
+            })
+            .collect();
+        let heights: Vec<f64> = (0..200).map(|k| 0.01 + 1e-4 * k as f64).collect();
+        let blend = OffsetBlend::new(&feet, &heights, &[(0..200).collect()], 0.01);
+        let mut blended = 0;
+        for k in 0..400 {
+            let t = 0.05 * k as f64;
+            let x = (1.0 + 0.0002 * (k % 100) as f64) * DVec3::new(t.cos(), t.sin(), 0.0);
+            // An exact hit on a foot between probes ends its sum early.
+            assert!((blend.height(feet[k % 200]) - heights[k % 200]).abs() < 1e-12);
+            let h = blend.height(x);
+            blended += usize::from(h != 0.0);
+            assert_eq!(h.to_bits(), height_by_scan(&blend, x).to_bits(), "{x}");
+        }
+        assert!(blended > 300, "{blended} of 400 probes in the band");
     }
 
     #[test]
