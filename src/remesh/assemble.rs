@@ -23,7 +23,7 @@
 //! The tolerance's bounding box is that of the boundary points and of the whole-ellipsoid
 //! regions (the part of the output the file pins down before any interior is meshed).
 
-use super::chart::{PoleWalk, Projection, RegionChart};
+use super::chart::{is_degenerate_loop, PoleWalk, Projection, RegionChart};
 use super::refine::{refine_arcs, Prune, RefineSettings};
 use super::subdivide::subdivide;
 use super::surface::{Lift, RegionSurface};
@@ -232,7 +232,8 @@ pub fn region_faults(
 /// meshing attempts as the file needs, and such faults come from the boundary and rarely go
 /// away with the budget. When some region fails in every attempt, with
 /// [`RemeshOptions::leave_out`] the attempts are made again leaving out each region that
-/// fails ([`MeshCheck::omitted_regions`]); if that fails too, the first error stands.
+/// fails ([`MeshCheck::omitted_regions`]), untangling regions whose loops include one that
+/// encloses nothing; if that fails too, the first error stands.
 /// [`Remeshed::attempts`] counts the meshings made.
 pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshed, RemeshError> {
     let mut attempts = 0;
@@ -593,7 +594,12 @@ struct Plan<'a> {
     /// How this attempt treats the boundary.
     treatment: Treatment,
     /// A region whose chart or triangulation fails is left out (a hole, counted in
-    /// [`MeshCheck::omitted_regions`]) instead of ending the attempt.
+    /// [`MeshCheck::omitted_regions`]) instead of ending the attempt; and untangling drops
+    /// the loops that enclose nothing, which would keep a region from being untangled
+    /// ([`region_crossings`]). Only in this last resort, so that files that mesh whole
+    /// mesh as before: untangling such regions in every attempt made Stanford's dragon
+    /// at `res3` mesh whole, but changed the encoder's check enough that horse's file at
+    /// K = 20 (volume) came out with a region 10 % of the diagonal off its source.
     leave_out: bool,
 }
 
@@ -709,6 +715,7 @@ impl Plan<'_> {
                 treatment.projection,
                 treatment.radial_where_untangled,
                 treatment.pole_walk,
+                self.leave_out,
             );
         }
         if treatment.radial_where_untangled
@@ -860,9 +867,15 @@ fn untangle(
     projection: Projection,
     radial_where_crossing: bool,
     walk: PoleWalk,
+    skip_degenerate: bool,
 ) -> (Vec<KnownChart>, Vec<Projection>) {
     // Regions whose loops changed since they were last looked at: the others would find
     // the same crossings, whose drops were refused.
+    let charting = |projection| Charting {
+        projection,
+        walk,
+        skip_degenerate,
+    };
     let mut changed = vec![true; rep.cycles.len()];
     let mut charts: Vec<KnownChart> = vec![None; rep.cycles.len()];
     let mut projections = vec![projection; rep.cycles.len()];
@@ -880,8 +893,7 @@ fn untangle(
                 rep,
                 chains,
                 points,
-                projections[r],
-                walk,
+                charting(projections[r]),
                 &mut drop,
             );
             // Untangling drops boundary points until the loops stop crossing, down to a
@@ -896,8 +908,7 @@ fn untangle(
                     rep,
                     chains,
                     points,
-                    Projection::Radial,
-                    walk,
+                    charting(Projection::Radial),
                     &mut radial_drop,
                 );
                 if radial.is_some() && radial_crossings == 0 {
@@ -940,6 +951,16 @@ type KnownChart = Option<(Vec<Vec<DVec3>>, RegionChart)>;
 /// Where a loop point sits in the refined arcs, if it may be dropped: (arc, position).
 type Droppable = Option<(u32, usize)>;
 
+/// How [`region_crossings`] charts a region's loops.
+#[derive(Debug, Clone, Copy)]
+struct Charting {
+    projection: Projection,
+    walk: PoleWalk,
+    /// Loops that enclose nothing are left out (the decoder's last resort:
+    /// [`Plan::leave_out`]).
+    skip_degenerate: bool,
+}
+
 /// Finds the crossings of one region's loops in its chart and, for each, a point to drop
 /// (where one of the two segments has a point that may be dropped); returns the chart and
 /// the number of crossings, droppable or not.
@@ -948,10 +969,14 @@ fn region_crossings(
     rep: &Representation,
     chains: &[Vec<u32>],
     points: &[DVec3],
-    projection: Projection,
-    walk: PoleWalk,
+    charting: Charting,
     drop: &mut Vec<(u32, usize)>,
 ) -> (KnownChart, usize) {
+    let Charting {
+        projection,
+        walk,
+        skip_degenerate,
+    } = charting;
     let (Some(e), Some(cycles)) = (
         rep.ellipsoids.get(region as usize),
         rep.cycles.get(region as usize),
@@ -981,7 +1006,15 @@ fn region_crossings(
                 }
             }
         }
-        if lp.len() >= 3 {
+        // With `skip_degenerate`, a loop that encloses nothing (fewer than 3 distinct
+        // directions: a scan's slit, or a hole whose duplicated vertices quantisation put
+        // at one position), which the meshing drops too, is left out here: it fails the
+        // chart, and the whole region would go untangled.
+        let degenerate = || {
+            let positions: Vec<DVec3> = lp.iter().map(|v| v.0).collect();
+            is_degenerate_loop(e, &positions)
+        };
+        if lp.len() >= 3 && !(skip_degenerate && degenerate()) {
             loops.push(lp);
         }
     }
@@ -2120,6 +2153,77 @@ mod tests {
         assert_eq!(without_spikes(long), vec![5000, 0, 5001]);
         // No spike: unchanged.
         assert_eq!(without_spikes(vec![0, 1, 2, 3]), vec![0, 1, 2, 3]);
+    }
+
+    /// A region whose outer loop folds (two points swapped, so two of its edges cross) and
+    /// which has a hole that encloses nothing: four arcs whose points all lie at one
+    /// position (a scan's vertices, duplicated where it was cut, meeting again). That loop
+    /// fails the chart, so the region is not untangled; in the decoder's last resort
+    /// (`skip_degenerate`) it is dropped, as the meshing drops it, and the fold is found.
+    #[test]
+    fn a_loop_that_encloses_nothing_is_dropped_for_untangling_in_the_last_resort() {
+        use crate::representation::{Arc, ArcRef, Cycle, Metadata};
+        let ring = |k: usize| {
+            let t = std::f64::consts::TAU * k as f64 / 12.0;
+            DVec3::new(0.5 * t.cos(), 0.5 * t.sin(), 0.75f64.sqrt())
+        };
+        let mut points: Vec<DVec3> = (0..12).map(ring).collect();
+        points.swap(3, 4);
+        points.extend([DVec3::Z; 4]);
+        let arc = |points: Vec<u32>, closed: bool| Arc {
+            points,
+            closed,
+            left: 0,
+            right: Side::Border,
+        };
+        let forward = |arc: u32| ArcRef {
+            arc,
+            reversed: false,
+        };
+        let rep = Representation {
+            ellipsoids: vec![Ellipsoid::sphere(DVec3::ZERO, 1.0)],
+            points,
+            arcs: vec![
+                arc((0..12).collect(), true),
+                arc(vec![12, 13], false),
+                arc(vec![13, 14], false),
+                arc(vec![14, 15], false),
+                arc(vec![15, 12], false),
+            ],
+            cycles: vec![vec![
+                Cycle {
+                    arcs: vec![forward(0)],
+                    outer: true,
+                },
+                Cycle {
+                    arcs: (1..5).map(forward).collect(),
+                    outer: false,
+                },
+            ]],
+            metadata: Metadata::default(),
+        };
+        rep.validate().unwrap();
+        let chains: Vec<Vec<u32>> = rep.arcs.iter().map(|a| a.points.clone()).collect();
+        let crossings = |skip_degenerate: bool| {
+            let mut drop = Vec::new();
+            let (chart, crossings) = region_crossings(
+                0,
+                &rep,
+                &chains,
+                &rep.points,
+                Charting {
+                    projection: Projection::Closest,
+                    walk: PoleWalk::Free,
+                    skip_degenerate,
+                },
+                &mut drop,
+            );
+            (chart.map(|(loops, _)| loops.len()), crossings, drop)
+        };
+        assert_eq!(crossings(false), (None, 0, vec![]));
+        let (loops, found, drop) = crossings(true);
+        assert_eq!((loops, found, drop.len()), (Some(1), 1, 1));
+        assert!(matches!(drop[0], (0, 2..=5)), "{drop:?}");
     }
 
     #[test]
