@@ -869,13 +869,13 @@ fn untangle(
     walk: PoleWalk,
     skip_degenerate: bool,
 ) -> (Vec<KnownChart>, Vec<Projection>) {
-    // Regions whose loops changed since they were last looked at: the others would find
-    // the same crossings, whose drops were refused.
     let charting = |projection| Charting {
         projection,
         walk,
         skip_degenerate,
     };
+    // Regions whose loops changed since they were last looked at: the others would find
+    // the same crossings, whose drops were refused.
     let mut changed = vec![true; rep.cycles.len()];
     let mut charts: Vec<KnownChart> = vec![None; rep.cycles.len()];
     let mut projections = vec![projection; rep.cycles.len()];
