@@ -17,6 +17,7 @@ use ellip::encode::{encode_mesh, EncodeSettings};
 use ellip::format::{decode, Limits};
 use ellip::import::{read_mesh, ImportOptions};
 use ellip::remesh::{remesh, RemeshOptions};
+use ellip::rng::SplitMix64;
 use ellip::segment::{Mode, RegionCount, SegmentOptions};
 use spade::{DelaunayTriangulation, Point2, Triangulation};
 use std::path::Path;
@@ -42,17 +43,12 @@ const MIN_RUNS: usize = 5;
 const MIN_SECONDS: f64 = 0.5;
 const MAX_RUNS: usize = 200;
 
-/// `n` points spread over the unit square, the same every run (SplitMix64).
+/// `n` points spread over the unit square, the same every run.
 fn square_points(n: usize) -> Vec<Point2<f64>> {
-    let mut state = 0x9e37_79b9_7f4a_7c15u64;
-    let mut next = move || {
-        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        (z ^ (z >> 31)) as f64 / u64::MAX as f64
-    };
-    (0..n).map(|_| Point2::new(next(), next())).collect()
+    let mut rng = SplitMix64::new(0x9e37_79b9_7f4a_7c15);
+    (0..n)
+        .map(|_| Point2::new(rng.next_f64(), rng.next_f64()))
+        .collect()
 }
 
 fn main() {
