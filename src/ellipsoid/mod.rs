@@ -116,6 +116,21 @@ impl Ellipsoid {
         }
     }
 
+    /// Half the size of the ellipsoid's axis-aligned bounding box.
+    pub fn half_extent(&self) -> DVec3 {
+        let m = DMat3::from_quat(self.rotation);
+        let scaled = [
+            m.x_axis * self.radii.x,
+            m.y_axis * self.radii.y,
+            m.z_axis * self.radii.z,
+        ];
+        DVec3::new(
+            scaled.iter().map(|a| a.x * a.x).sum::<f64>().sqrt(),
+            scaled.iter().map(|a| a.y * a.y).sum::<f64>().sqrt(),
+            scaled.iter().map(|a| a.z * a.z).sum::<f64>().sqrt(),
+        )
+    }
+
     /// The same ellipsoid with the other sign.
     pub fn flipped(&self) -> Ellipsoid {
         Ellipsoid {

@@ -1842,27 +1842,12 @@ fn reference_diagonal(rep: &Representation) -> f64 {
     let mut corners: Vec<DVec3> = rep.points.clone();
     for r in whole_regions(rep) {
         if let Some(e) = rep.ellipsoids.get(r) {
-            let half = ellipsoid_half_extent(e);
+            let half = e.half_extent();
             corners.push(e.center - half);
             corners.push(e.center + half);
         }
     }
     crate::mesh::Aabb::from_points(&corners).map_or(0.0, |b| b.diagonal())
-}
-
-/// Half the size of an ellipsoid's axis-aligned bounding box.
-fn ellipsoid_half_extent(e: &Ellipsoid) -> DVec3 {
-    let m = glam::DMat3::from_quat(e.rotation);
-    let scaled = [
-        m.x_axis * e.radii.x,
-        m.y_axis * e.radii.y,
-        m.z_axis * e.radii.z,
-    ];
-    DVec3::new(
-        scaled.iter().map(|a| a.x * a.x).sum::<f64>().sqrt(),
-        scaled.iter().map(|a| a.y * a.y).sum::<f64>().sqrt(),
-        scaled.iter().map(|a| a.z * a.z).sum::<f64>().sqrt(),
-    )
 }
 
 /// Per region, an estimate of its area: the solid angle its loops enclose on the unit sphere
