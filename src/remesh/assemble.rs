@@ -187,7 +187,12 @@ fn prepare(rep: &Representation, options: &RemeshOptions) -> Result<Prepared, Re
     let settings = RefineSettings {
         spacing,
         tolerance: tolerance.unwrap_or(spacing / 16.0),
-        max_new_points: (budget / 4).min(options.max_vertices - minimum),
+        // Refined arcs never take the total past the budget: a cube's twelve triangles,
+        // decoded at its 8 vertices, got 2 points on the sphere their regions are fitted
+        // with (21 % of the diagonal off the cube) where its 8 corners were all it asked for.
+        max_new_points: (budget / 4)
+            .min(budget.saturating_sub(minimum))
+            .min(options.max_vertices - minimum),
         prune: Prune::Narrow,
     };
     Ok(Prepared {
