@@ -154,6 +154,10 @@ struct Header<'a> {
     body_start: usize,
     /// Number of header lines.
     lines: u64,
+    /// How many header lines had a keyword the format does not have (skipped), and the
+    /// first of them: (line, keyword). Blender 2.4x wrote its "Created by Blender3D …"
+    /// banner without `comment`.
+    skipped: (u64, Option<(u64, String)>),
 }
 
 /// Reads the header, up to and including the `end_header` line.
@@ -173,6 +177,9 @@ fn read_header(bytes: &[u8]) -> Result<Header<'_>, ParseError> {
     }
     let mut encoding = None;
     let mut elements: Vec<Element<'_>> = Vec::new();
+    let mut skipped = (0, None);
+    // The first unknown line since the last element line.
+    let mut since_element: Option<(u64, String)> = None;
     loop {
         let Some(text) = lines.next() else {
             return Err(bad_header(lines.line, "no end_header line".into()));
@@ -193,6 +200,7 @@ fn read_header(bytes: &[u8]) -> Result<Header<'_>, ParseError> {
                 encoding = Some(read_format(words.next(), words.next(), at)?);
             }
             b"element" => {
+                since_element = None;
                 let (Some(name), Some(count)) = (words.next(), words.next()) else {
                     return Err(bad_header(at, "an element needs a name and a count".into()));
                 };
@@ -206,17 +214,24 @@ fn read_header(bytes: &[u8]) -> Result<Header<'_>, ParseError> {
                 });
             }
             b"property" => {
+                // Properties after an unknown line belong to what it declared: it was no
+                // comment (a misspelt `element`), and the body cannot be read without it.
+                if let Some((line, keyword)) = since_element.take() {
+                    return Err(bad_header(line, format!("unknown keyword {keyword:?}")));
+                }
                 let Some(element) = elements.last_mut() else {
                     return Err(bad_header(at, "a property before any element".into()));
                 };
                 element.properties.push(read_property(words, at)?);
             }
             b"end_header" => break,
+            // A line the format does not define, with no property after it, declares
+            // nothing the body depends on: skipped, and reported (read as the comment its
+            // writer meant).
             other => {
-                return Err(bad_header(
-                    at,
-                    format!("unknown keyword {:?}", excerpt(other)),
-                ))
+                skipped.0 += 1;
+                skipped.1.get_or_insert_with(|| (at, excerpt(other)));
+                since_element.get_or_insert_with(|| (at, excerpt(other)));
             }
         }
     }
@@ -228,6 +243,7 @@ fn read_header(bytes: &[u8]) -> Result<Header<'_>, ParseError> {
         elements,
         body_start: lines.pos,
         lines: lines.line,
+        skipped,
     })
 }
 
@@ -421,6 +437,12 @@ fn read_body<B: Body>(
         triangles: Vec::with_capacity(plan.face.map_or(0, |(f, _)| to_usize(count_of(f)))),
         ..Soup::default()
     };
+    if let (count, Some((line, keyword))) = &header.skipped {
+        soup.warnings.push(format!(
+            "skipped {count} PLY header line(s) with an unknown keyword (the first: line \
+             {line}, {keyword:?})"
+        ));
+    }
     let vertex_count = count_of(plan.vertex);
     for (e, element) in header.elements.iter().enumerate() {
         let what = if e == plan.vertex {
@@ -964,6 +986,29 @@ mod tests {
         element vertex 5\r\nproperty float x\r\nproperty float y\r\nproperty float z\r\n\
         element face 2\r\nproperty list uchar int vertex_indices\r\nend_header\r\n\
         0 0 0\r\n1 0 0\r\n1 1 0\r\n0 1 0\r\n0.5 0.5 1\r\n4 0 1 2 3\r\n3 0 1 4\r\n";
+
+    /// Blender 2.4x's banner line has no `comment` before it: the line is skipped and
+    /// reported, and the mesh reads as it would without it.
+    #[test]
+    fn a_header_line_with_an_unknown_keyword_is_skipped_with_a_warning() {
+        let with_banner = ASCII.replacen(
+            "comment made by hand",
+            "Created by Blender3D 247 - www.blender.org, source file: \r\nCreated again",
+            1,
+        );
+        let soup = read(with_banner.as_bytes()).unwrap();
+        let plain = read(ASCII.as_bytes()).unwrap();
+        assert_eq!(soup.positions, plain.positions);
+        assert_eq!(soup.triangles, plain.triangles);
+        assert_eq!(
+            soup.warnings,
+            vec![
+                "skipped 2 PLY header line(s) with an unknown keyword (the first: line 3, \
+                  \"Created\")"
+                    .to_string()
+            ]
+        );
+    }
 
     #[test]
     fn reads_ascii_with_crlf_and_fans_quads() {
