@@ -43,6 +43,9 @@ pub(crate) fn parse(
         return Err(ParseError::whole(Problem::Empty));
     }
     let root = gltf::json::Root::from_slice(json).map_err(|e| {
+        if let Some(problem) = unsupported_kind(json) {
+            return ParseError::whole(problem);
+        }
         let problem = Problem::Gltf {
             message: e.to_string(),
         };
@@ -55,8 +58,9 @@ pub(crate) fn parse(
         }
     })?;
     check_position_indices(&root)?;
-    let document =
-        Document::from_json(root).map_err(|e| ParseError::whole(describe_gltf_error(e)))?;
+    let document = Document::from_json(root).map_err(|e| {
+        ParseError::whole(unsupported_kind(json).unwrap_or_else(|| describe_gltf_error(e)))
+    })?;
     let mut reader = Reader {
         document: &document,
         bin,
@@ -214,6 +218,36 @@ fn check_position_indices(root: &gltf::json::Root) -> Result<(), ParseError> {
 }
 
 /// Words a `gltf` crate error for [`Problem::Gltf`], listing at most five validation errors.
+/// Extensions that store the geometry in a form this reader does not decode.
+const COMPRESSION_EXTENSIONS: [&str; 3] = [
+    "KHR_draco_mesh_compression",
+    "EXT_meshopt_compression",
+    "KHR_meshopt_compression",
+];
+
+/// What a glTF file that failed to parse or validate is, when it is valid but not what this
+/// reader takes, rather than malformed: glTF 1.0 (its JSON differs: objects where 2.0 has
+/// arrays, and the parser names only the first difference), or geometry compressed with
+/// Draco or meshoptimizer (its accessors have no buffer views: "Missing data"). Read from
+/// the JSON again, only on failure.
+fn unsupported_kind(json: &[u8]) -> Option<Problem> {
+    let value: serde_json::Value = serde_json::from_slice(json).ok()?;
+    let version = value.pointer("/asset/version").and_then(|v| v.as_str());
+    if let Some(version) = version.filter(|v| v.split('.').next() != Some("2")) {
+        return Some(Problem::Unsupported {
+            what: format!("glTF {version} (this reader takes glTF 2.0)"),
+        });
+    }
+    let required = value.get("extensionsRequired")?.as_array()?;
+    let compressed = required
+        .iter()
+        .filter_map(|e| e.as_str())
+        .find(|e| COMPRESSION_EXTENSIONS.contains(e))?;
+    Some(Problem::Unsupported {
+        what: format!("glTF geometry compressed with {compressed} (decompress it first)"),
+    })
+}
+
 fn describe_gltf_error(error: gltf::Error) -> Problem {
     let message = match error {
         gltf::Error::Validation(errors) => {
@@ -754,6 +788,46 @@ fn percent_decode(uri: &str) -> Option<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// glTF 1.0 and compressed geometry are named as what they are (valid files this
+    /// reader does not take), not as the first place the 2.0 parser stumbles; a malformed
+    /// 2.0 file is still malformed.
+    #[test]
+    fn names_gltf_1_and_compressed_geometry_as_unsupported() {
+        let read = |json: &str| parse(json.as_bytes(), None, &ImportLimits::default());
+        let unsupported = |json: &str| match read(json) {
+            Err(ParseError {
+                problem: Problem::Unsupported { what },
+                ..
+            }) => what,
+            other => panic!("{other:?}"),
+        };
+        let v1 = r#"{"asset": {"version": "1.0"}, "meshes": {"box": {"primitives": []}}}"#;
+        assert_eq!(unsupported(v1), "glTF 1.0 (this reader takes glTF 2.0)");
+        let draco = r#"{"asset": {"version": "2.0"},
+            "extensionsUsed": ["KHR_draco_mesh_compression"],
+            "extensionsRequired": ["KHR_draco_mesh_compression"],
+            "accessors": [{"componentType": 5126, "count": 3, "type": "VEC3"}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "extensions":
+                {"KHR_draco_mesh_compression": {"bufferView": 0, "attributes": {"POSITION": 0}}}}]}],
+            "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}], "scene": 0}"#;
+        assert_eq!(
+            unsupported(draco),
+            "glTF geometry compressed with KHR_draco_mesh_compression (decompress it first)"
+        );
+        let malformed = r#"{"asset": {"version": "2.0"}, "meshes": {"box": {}}}"#;
+        assert!(
+            matches!(
+                read(malformed),
+                Err(ParseError {
+                    problem: Problem::Gltf { .. },
+                    ..
+                })
+            ),
+            "{:?}",
+            read(malformed)
+        );
+    }
 
     /// A GLB from raw chunks `(type, data)`, with a correct total length.
     fn container(chunks: &[(&[u8; 4], &[u8])]) -> Vec<u8> {
