@@ -33,7 +33,7 @@
 //!   in place), stored 11–12 % of the diagonal inside the cube, which decoded 16–28 % RMS
 //!   off; now the corners stay where the mesh has them. (Dropping the link between any two
 //!   junctions also kept the cube, but moved the junctions of every mesh with arcs of one
-//!   edge: assimp's low-poly spider, clean before, decoded with 6 flipped triangles, and 40
+//!   edge: assimp's low-poly spider, clean before, decoded with 6 flipped triangles, and 36
 //!   of the 60 small shared meshes' files changed.)
 //! - A point on a mesh-border arc uses its two neighbours along the border and the one
 //!   ellipsoid of its region: the border is smoothed along that ellipsoid (it has no second
