@@ -615,10 +615,22 @@ fn accessors_and_views_outside_their_data_are_rejected() {
             gltf_error,
         ),
         (
+            // A valid file this reader does not take: named as such.
             "required extension",
             edited(|j| {
                 j["extensionsRequired"] = json!(["KHR_draco_mesh_compression"]);
                 j["extensionsUsed"] = json!(["KHR_draco_mesh_compression"]);
+            }),
+            |p| {
+                matches!(p, Problem::Unsupported { what }
+                    if what.contains("KHR_draco_mesh_compression"))
+            },
+        ),
+        (
+            "required extension not for geometry",
+            edited(|j| {
+                j["extensionsRequired"] = json!(["KHR_technique_webgl"]);
+                j["extensionsUsed"] = json!(["KHR_technique_webgl"]);
             }),
             gltf_error,
         ),
