@@ -17,7 +17,7 @@ use crate::boundary::{extract_boundaries, smooth_boundaries, BoundaryError, Smoo
 use crate::compare::Bvh;
 use crate::ellipsoid::Ellipsoid;
 use crate::format::{self, simplify::DEFAULT_RELATIVE_TOLERANCE, EncodeError, EncodeOptions};
-use crate::mesh::Mesh;
+use crate::mesh::{Aabb, Mesh};
 use crate::remesh::assemble::Treatment;
 use crate::remesh::Remeshed;
 use crate::representation::{InvalidRepresentation, Metadata, Representation};
@@ -517,8 +517,8 @@ struct Source {
     faces: Bvh,
     /// Each face's centroid, for the distance from the source to the decoded mesh.
     centroids: Vec<DVec3>,
-    /// Each face's axis-aligned bounding box (lowest and highest corner).
-    face_boxes: Vec<(DVec3, DVec3)>,
+    /// Each face's axis-aligned bounding box.
+    face_boxes: Vec<Aabb>,
 }
 
 impl Source {
@@ -534,7 +534,10 @@ impl Source {
             face_boxes: (0..mesh.face_count())
                 .map(|f| {
                     let [a, b, c] = mesh.corners(f);
-                    (a.min(b).min(c), a.max(b).max(c))
+                    Aabb {
+                        min: a.min(b).min(c),
+                        max: a.max(b).max(c),
+                    }
                 })
                 .collect(),
         }
@@ -549,20 +552,20 @@ impl Source {
     /// this one was never blamed, and decoders (leaving out what fails) meshed the whole
     /// ellipsoid, 500 diagonals RMS off the source.
     fn far_whole_regions(&self, rep: &Representation, labels: &[u32]) -> Vec<(u32, f64)> {
-        let mut boxes: Vec<Option<(DVec3, DVec3)>> = vec![None; rep.ellipsoids.len()];
-        for (&(lo, hi), &r) in self.face_boxes.iter().zip(labels) {
+        let mut boxes: Vec<Option<Aabb>> = vec![None; rep.ellipsoids.len()];
+        for (face, &r) in self.face_boxes.iter().zip(labels) {
             if let Some(b) = boxes.get_mut(r as usize) {
-                *b = Some(b.map_or((lo, hi), |(l, h)| (l.min(lo), h.max(hi))));
+                *b = Some(b.map_or(*face, |b| b.union(face)));
             }
         }
         let limit = MAX_DEPARTURE * self.diagonal;
         let mut far: Vec<(u32, f64)> = (0u32..)
             .zip(rep.ellipsoids.iter().zip(&rep.cycles).zip(boxes))
             .filter_map(|(r, ((e, cycles), faces))| {
-                let (lo, hi) = faces.filter(|_| cycles.is_empty())?;
+                let faces = faces.filter(|_| cycles.is_empty())?;
                 let half = e.half_extent();
-                let beyond = (lo - (e.center - half))
-                    .max(e.center + half - hi)
+                let beyond = (faces.min - (e.center - half))
+                    .max(e.center + half - faces.max)
                     .max_element();
                 // Not finite: a hostile or broken fit, as far as it gets.
                 (beyond > limit || beyond.is_nan()).then_some((r, beyond))

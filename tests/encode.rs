@@ -533,16 +533,16 @@ fn a_cube_decodes_as_itself() {
     let diagonal = 3f64.sqrt();
     let encoded = encode_mesh(&cube, &EncodeSettings::default(), &mut |_| {}).unwrap();
     let rep = decode(&encoded.bytes, &Limits::default()).unwrap();
-    let nearest_corner = |p: DVec3| {
-        cube.positions()
+    let nearest = |points: &[DVec3], p: DVec3| {
+        points
             .iter()
-            .map(|c| c.distance(p))
+            .map(|q| q.distance(p))
             .fold(f64::INFINITY, f64::min)
     };
     assert_eq!(rep.points.len(), 8);
     for &p in &rep.points {
         // The boundary tolerance (10⁻³ of the diagonal) bounds each stored point's error.
-        let d = nearest_corner(p);
+        let d = nearest(cube.positions(), p);
         assert!(
             d <= 1e-3 * diagonal,
             "stored point {p} is {d} from every corner"
@@ -550,13 +550,8 @@ fn a_cube_decodes_as_itself() {
     }
     let out = ellip::remesh::remesh(&rep, &ellip::remesh::RemeshOptions::default()).unwrap();
     assert!(out.check.is_clean(), "{}", out.check.faults());
-    for c in cube.positions() {
-        let d = out
-            .mesh
-            .positions()
-            .iter()
-            .map(|p| p.distance(*c))
-            .fold(f64::INFINITY, f64::min);
+    for &c in cube.positions() {
+        let d = nearest(out.mesh.positions(), c);
         assert!(
             d <= 1e-3 * diagonal,
             "corner {c} is {d} from the decoded mesh"

@@ -131,7 +131,7 @@ pub fn smooth_boundaries(
             })?;
         points.push(*p);
     }
-    let links = Links::build(graph, ellipsoids, positions)?;
+    let links = Links::build(graph, ellipsoids, &points)?;
     // The points of small holes stay where the mesh has them.
     let mut pinned = vec![false; points.len()];
     for border in mesh.topology().boundary_loops() {
@@ -187,11 +187,11 @@ struct Links {
 }
 
 impl Links {
-    /// `positions`: the mesh's vertex positions.
+    /// `points`: each boundary point's position (indices as `graph.vertices`).
     fn build(
         graph: &BoundaryGraph,
         ellipsoids: &[Ellipsoid],
-        positions: &[DVec3],
+        points: &[DVec3],
     ) -> Result<Links, BoundaryError> {
         let index = |v: u32| {
             graph
@@ -244,7 +244,11 @@ impl Links {
         // around it, are not each other's neighbours: see the module doc.
         let mut held = vec![false; n];
         for &j in &graph.junctions {
-            let (Ok(k), Some(&p)) = (graph.vertices.binary_search(&j), positions.get(j as usize))
+            let Some((k, &p)) = graph
+                .vertices
+                .binary_search(&j)
+                .ok()
+                .and_then(|k| Some((k, points.get(k)?)))
             else {
                 continue;
             };

@@ -154,10 +154,11 @@ struct Header<'a> {
     body_start: usize,
     /// Number of header lines.
     lines: u64,
-    /// How many header lines had a keyword the format does not have (skipped), and the
-    /// first of them: (line, keyword). Blender 2.4x wrote its "Created by Blender3D …"
-    /// banner without `comment`.
-    skipped: (u64, Option<(u64, String)>),
+    /// How many header lines had a keyword the format does not have (skipped). Blender
+    /// 2.4x wrote its "Created by Blender3D …" banner without `comment`.
+    skipped: u64,
+    /// The first of them: (line, keyword).
+    first_skipped: Option<(u64, String)>,
 }
 
 /// Reads the header, up to and including the `end_header` line.
@@ -177,7 +178,7 @@ fn read_header(bytes: &[u8]) -> Result<Header<'_>, ParseError> {
     }
     let mut encoding = None;
     let mut elements: Vec<Element<'_>> = Vec::new();
-    let mut skipped = (0, None);
+    let (mut skipped, mut first_skipped) = (0, None);
     // The first unknown line since the last element line.
     let mut since_element: Option<(u64, String)> = None;
     loop {
@@ -229,8 +230,8 @@ fn read_header(bytes: &[u8]) -> Result<Header<'_>, ParseError> {
             // nothing the body depends on: skipped, and reported (read as the comment its
             // writer meant).
             other => {
-                skipped.0 += 1;
-                skipped.1.get_or_insert_with(|| (at, excerpt(other)));
+                skipped += 1;
+                first_skipped.get_or_insert_with(|| (at, excerpt(other)));
                 since_element.get_or_insert_with(|| (at, excerpt(other)));
             }
         }
@@ -244,6 +245,7 @@ fn read_header(bytes: &[u8]) -> Result<Header<'_>, ParseError> {
         body_start: lines.pos,
         lines: lines.line,
         skipped,
+        first_skipped,
     })
 }
 
@@ -437,7 +439,8 @@ fn read_body<B: Body>(
         triangles: Vec::with_capacity(plan.face.map_or(0, |(f, _)| to_usize(count_of(f)))),
         ..Soup::default()
     };
-    if let (count, Some((line, keyword))) = &header.skipped {
+    if let Some((line, keyword)) = &header.first_skipped {
+        let count = header.skipped;
         soup.warnings.push(format!(
             "skipped {count} PLY header line(s) with an unknown keyword (the first: line \
              {line}, {keyword:?})"

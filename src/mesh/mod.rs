@@ -74,6 +74,14 @@ impl Aabb {
         Some(Aabb { min, max })
     }
 
+    /// The box around both boxes.
+    pub fn union(&self, other: &Aabb) -> Aabb {
+        Aabb {
+            min: self.min.min(other.min),
+            max: self.max.max(other.max),
+        }
+    }
+
     /// Length of the diagonal: the unit in which ellip reports distances.
     pub fn diagonal(&self) -> f64 {
         (self.max - self.min).length()
