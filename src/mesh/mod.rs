@@ -8,6 +8,7 @@
 //! Invariants kept by [`Mesh::new`]: every index is in range, no triangle repeats a vertex,
 //! every coordinate is finite, and there are fewer than 2³² vertices and faces.
 
+pub mod crease;
 pub mod curvature;
 mod topology;
 
