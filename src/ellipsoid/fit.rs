@@ -35,9 +35,11 @@
 //!   the upper cap, which at 10³ diagonals deviates from a plane by at most D²/(8·10³·D)
 //!   = 1.25·10⁻⁴·D across a whole-model patch. The centre stays within 4× the cap of the
 //!   region.
-//! - **Specks.** A piece of the mesh with fewer vertices than the nine parameters (a scan's
-//!   fins and loose triangles) leaves an ellipsoid free between its samples; the
-//!   segmentation fits it with a sphere tangent to it instead ([`fit_tangent_sphere`]).
+//! - **Specks and facets.** A piece of the mesh with fewer vertices than the nine
+//!   parameters (a scan's fins and loose triangles), or a flat region that few between
+//!   creases (a cube's triangle), leaves an ellipsoid free between its samples; the
+//!   segmentation fits it with a sphere or a plane-like spheroid tangent to it instead
+//!   ([`fit_tangent_sphere`]).
 //! - **Large regions.** The iterations use at most [`FitOptions::max_solver_points`] samples,
 //!   picked with a fixed stride and reweighted so the total weight is unchanged; the
 //!   returned error is then evaluated on every sample at full resolution.
@@ -322,16 +324,21 @@ pub const MIN_ELLIPSOID_SAMPLES: usize = 9;
 
 /// For an input with fewer usable samples than [`MIN_ELLIPSOID_SAMPLES`]: the sphere
 /// tangent to the samples' plane (least squares) at their weighted centroid, on the side
-/// their normals face, whose radius gives the lowest objective among the samples' spread times 2^k up
-/// to [`FitOptions::max_radius`] (and the cap itself: a flat patch is nearly a plane), for
-/// the signs [`FitOptions::signs`] allows. `None` for other inputs, or when the normals
-/// cancel.
+/// their normals face, whose radius gives the lowest objective among the samples' spread
+/// times 2^k up to [`FitOptions::max_radius`] and the cap itself, or the caps' limit, a
+/// plane: the spheroid as wide as the cap and one unit (the scale) thick, tangent there,
+/// whose top is flat to within spread²·unit/(2·cap²) where the widest sphere bulges by
+/// spread²/(2·cap). For the signs [`FitOptions::signs`] allows. `None` for other inputs, or
+/// when the normals cancel.
 ///
 /// For the specks of a scan, pieces of one or two triangles (see
-/// [`crate::segment::proxy::speck_faces`]): so few samples leave an ellipsoid free between
-/// them. Matched to a single triangle's corners and normals, [`fit_ellipsoid`] returns
-/// needles a hundredth of the diagonal thick with the triangle inside, whose normal at the
-/// triangle's centre points anywhere; a tangent sphere's normal there is the patch's own.
+/// [`crate::segment::proxy::speck_faces`]), and the facets of a low-poly part (a cube's
+/// triangle): so few samples leave an ellipsoid free between them. Matched to a single
+/// triangle's corners and normals, [`fit_ellipsoid`] returns needles a hundredth of the
+/// diagonal thick with the triangle inside, whose normal at the triangle's centre points
+/// anywhere; a tangent sphere's normal there is the patch's own. A facet's corners lie on
+/// the plane-like spheroid to rounding (within 10⁻⁹ of the cap, so boundary smoothing
+/// leaves a cube's corners where they are: [`crate::boundary::smooth_boundaries`]).
 pub fn fit_tangent_sphere(input: &FitInput<'_>, options: &FitOptions) -> Option<Fit> {
     let samples: Vec<(f64, DVec3, DVec3)> = (0..input.len())
         .filter_map(|i| input.usable_sample(i).map(|(w, p, n, _)| (w, p, n)))
@@ -391,6 +398,18 @@ pub fn fit_tangent_sphere(input: &FitInput<'_>, options: &FitOptions) -> Option<
             if best.is_none_or(|b| error < b.error) {
                 best = Some(Fit { ellipsoid, error });
             }
+        }
+        // The caps' limit, a plane: the spheroid as wide as the cap allows and one unit
+        // thick, tangent at the centroid (see the function's documentation).
+        let ellipsoid = Ellipsoid {
+            center: centroid - sign.factor() * scale * normal,
+            rotation: DQuat::from_rotation_arc(DVec3::Z, normal),
+            radii: DVec3::new(max_radius, max_radius, scale),
+            sign,
+        };
+        let error = evaluate_error(input, options, &ellipsoid);
+        if best.is_none_or(|b| error < b.error) {
+            best = Some(Fit { ellipsoid, error });
         }
     }
     best
@@ -1342,19 +1361,18 @@ mod tests {
             let fit = fit_tangent_sphere(&input, &options).expect("three samples: a sphere");
             let e = fit.ellipsoid;
             assert_eq!(e.sign, sign);
+            // A sphere, or the caps' limit (as wide as the widest, flat on top).
             assert_eq!(e.radii.x, e.radii.y);
-            assert_eq!(e.radii.y, e.radii.z);
+            let cap = options.max_radius * options.scale;
+            assert!(e.radii.y == e.radii.z || e.radii.x == cap, "{}", e.radii);
             // Tangent to the triangle at its centroid, on the side its normals face: the
-            // sphere's normal there is the face's, and a corner at distance s from the
-            // centroid lies s²/2R off it (the radius R is what the normals' lean asks).
+            // normal there is the face's, and a corner at distance s from the centroid lies
+            // s²/2ρ off it, ρ the radius of curvature there (R²/c for radii R, R, c).
             assert!(e.normal(centroid).dot(face) > 1.0 - 1e-9);
+            let rho = e.radii.x * e.radii.x / e.radii.z;
             for p in points {
                 let (d, s) = (e.radial_distance(p), p.distance(centroid));
-                assert!(
-                    d.abs() <= 0.51 * s * s / e.radii.x,
-                    "{p}: {d}, radius {}",
-                    e.radii.x
-                );
+                assert!(d.abs() <= 0.51 * s * s / rho, "{p}: {d}, radii {}", e.radii);
             }
         }
         // Nine samples or more are not a speck's.
@@ -1365,6 +1383,35 @@ mod tests {
         let flat = vec![0.0; many.len()];
         let input = FitInput::new(&many, &up, &flat).unwrap();
         assert!(fit_tangent_sphere(&input, &FitOptions::surface(&scale)).is_none());
+    }
+
+    /// A facet of a low-poly part (a cube's triangle), measured with its own face's normal
+    /// at every corner: the plane-like spheroid, on which its corners lie to rounding, beats
+    /// every sphere tangent to it (the widest bulges by spread²/2R).
+    #[test]
+    fn a_flat_facet_gets_the_plane_like_spheroid() {
+        let points = [
+            DVec3::new(0.5, -0.5, 0.5),
+            DVec3::new(0.5, 0.5, 0.5),
+            DVec3::new(0.5, 0.5, -0.5),
+        ];
+        let face = DVec3::X;
+        let normals = [face; 3];
+        let curvatures = [0.0; 3];
+        let input = FitInput::new(&points, &normals, &curvatures).unwrap();
+        let scale = super::super::MeshScale::new(3f64.sqrt(), 1.2, 1.0);
+        let options = FitOptions::surface(&scale);
+        let e = fit_tangent_sphere(&input, &options)
+            .expect("three samples")
+            .ellipsoid;
+        let (cap, unit) = (options.max_radius * scale.diagonal, scale.diagonal);
+        assert!((e.radii - DVec3::new(cap, cap, unit)).abs().max_element() < 1e-9 * cap);
+        for p in points {
+            // Within 10⁻⁹ of the cap: what boundary smoothing counts as on the ellipsoid.
+            let d = e.radial_distance(p).abs();
+            assert!(d < 1e-9 * cap, "{p}: {d}");
+            assert!(e.normal(p).dot(face) > 1.0 - 1e-9);
+        }
     }
 
     #[test]
