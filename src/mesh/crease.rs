@@ -80,19 +80,22 @@ impl CreaseCorners {
             .collect();
         let normal_of = |f: u32| face_normals.get(f as usize).copied().unwrap_or(DVec3::ZERO);
         let cos = CREASE_ANGLE.cos();
-        // Two faces on one side: both have a normal and they are within the crease angle.
-        let same_side =
-            |a: DVec3, b: DVec3| a != DVec3::ZERO && b != DVec3::ZERO && a.dot(b) >= cos;
+        // Whether two faces, both with a normal (degenerate faces have none), are on one
+        // side (`true`: within the crease angle) or on both sides of a crease (`false`).
+        let sides = |f: u32, g: u32| -> Option<bool> {
+            let (a, b) = (normal_of(f), normal_of(g));
+            (a != DVec3::ZERO && b != DVec3::ZERO).then(|| a.dot(b) >= cos)
+        };
+        let same_side = |f: u32, g: u32| sides(f, g) == Some(true);
         let on_crease: Vec<bool> = (0..positions.len() as u32)
             .map(|v| {
                 let around = topology.faces_around(v);
                 around.len() <= MAX_CREASE_FAN
                     && around.iter().enumerate().any(|(i, &f)| {
-                        let a = normal_of(f);
-                        around.iter().skip(i + 1).any(|&g| {
-                            let b = normal_of(g);
-                            a != DVec3::ZERO && b != DVec3::ZERO && a.dot(b) < cos
-                        })
+                        around
+                            .iter()
+                            .skip(i + 1)
+                            .any(|&g| sides(f, g) == Some(false))
                     })
             })
             .collect();
@@ -107,7 +110,6 @@ impl CreaseCorners {
             let v = v as u32;
             let around = topology.faces_around(v);
             for &f in around {
-                let own = normal_of(f);
                 let Some(k) = faces
                     .get(f as usize)
                     .and_then(|t| t.iter().position(|&u| u == v))
@@ -124,7 +126,7 @@ impl CreaseCorners {
                     let Some(j) = tri.iter().position(|&u| u == v) else {
                         continue;
                     };
-                    if !same_side(own, other) {
+                    if !same_side(f, g) {
                         continue;
                     }
                     if let (Some(a), Some(b), Some(c)) =
