@@ -65,19 +65,9 @@ pub struct CreaseCorners {
 impl CreaseCorners {
     /// The crease corners of `mesh`, whose vertices have the mean curvatures `curvatures`.
     pub fn of_mesh(mesh: &Mesh, curvatures: &[f64]) -> CreaseCorners {
-        let positions = mesh.positions();
         let faces = mesh.faces();
         let topology = mesh.topology();
-        let corner = |f: u32, k: usize| -> Option<DVec3> {
-            let v = faces.get(f as usize)?.get(k % 3)?;
-            positions.get(*v as usize).copied()
-        };
-        let face_normals: Vec<DVec3> = (0..faces.len() as u32)
-            .map(|f| match [0, 1, 2].map(|k| corner(f, k)) {
-                [Some(a), Some(b), Some(c)] => (b - a).cross(c - a).normalize_or_zero(),
-                _ => DVec3::ZERO,
-            })
-            .collect();
+        let face_normals = mesh.face_normals();
         let normal_of = |f: u32| face_normals.get(f as usize).copied().unwrap_or(DVec3::ZERO);
         let cos = CREASE_ANGLE.cos();
         // Whether two faces, both with a normal (degenerate faces have none), are on one
@@ -87,7 +77,7 @@ impl CreaseCorners {
             (a != DVec3::ZERO && b != DVec3::ZERO).then(|| a.dot(b) >= cos)
         };
         let same_side = |f: u32, g: u32| sides(f, g) == Some(true);
-        let on_crease: Vec<bool> = (0..positions.len() as u32)
+        let on_crease: Vec<bool> = (0..mesh.vertex_count() as u32)
             .map(|v| {
                 let around = topology.faces_around(v);
                 around.len() <= MAX_CREASE_FAN
@@ -129,13 +119,11 @@ impl CreaseCorners {
                     if !same_side(f, g) {
                         continue;
                     }
-                    if let (Some(a), Some(b), Some(c)) =
-                        (corner(g, j), corner(g, j + 1), corner(g, j + 2))
-                    {
-                        let angle = (b - a).angle_between(c - a);
-                        if angle.is_finite() {
-                            normal += angle * other;
-                        }
+                    // The face's angle at the vertex (faces index the mesh: `Mesh::new`).
+                    let p = mesh.corners(g as usize);
+                    let angle = (p[(j + 1) % 3] - p[j]).angle_between(p[(j + 2) % 3] - p[j]);
+                    if angle.is_finite() {
+                        normal += angle * other;
                     }
                     for &u in tri.iter().filter(|&&u| u != v) {
                         let smooth = !on_crease.get(u as usize).copied().unwrap_or(true);
@@ -188,11 +176,6 @@ mod tests {
     use crate::mesh::curvature::mean_curvature;
     use crate::synth::shapes::{capsule, cube, cylinder, icosphere, torus};
 
-    fn face_normal(mesh: &Mesh, f: usize) -> DVec3 {
-        let [a, b, c] = mesh.corners(f);
-        (b - a).cross(c - a).normalize()
-    }
-
     #[test]
     fn a_cubes_corners_on_its_edges_take_their_own_faces_side() {
         for subdivisions in [1, 3] {
@@ -207,7 +190,7 @@ mod tests {
                         continue;
                     }
                     let side = side.expect("a corner on the cube's edge is on a crease");
-                    assert!(side.normal.dot(face_normal(&mesh, f)) > 1.0 - 1e-12);
+                    assert!(side.normal.dot(mesh.face_normal(f)) > 1.0 - 1e-12);
                     // Its side is flat: every vertex next to it on its face is either on
                     // an edge too or flat.
                     assert!(side.curvature.abs() < 1e-9, "{}", side.curvature);
@@ -251,7 +234,7 @@ mod tests {
         let rim = |v: u32| (v as usize) < n || (m * n..(m + 1) * n).contains(&(v as usize));
         let mut counted = [0, 0];
         for (f, tri) in mesh.faces().iter().enumerate() {
-            let own = face_normal(&mesh, f);
+            let own = mesh.face_normal(f);
             for (k, &v) in tri.iter().enumerate() {
                 let side = creases.side(f as u32, k);
                 if !rim(v) {
