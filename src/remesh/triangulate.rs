@@ -881,12 +881,12 @@ impl AdaptiveTriangulation {
         let height = corners.iter().map(|c| c.height).sum::<f64>() / 3.0;
         let point = surface.at_height(plane, height);
         let clear = corners.iter().all(|c| {
-            let corner = c.plane();
-            // The chart length of CLEARANCE_SPACINGS minimum spacings here (the chart's
-            // scale from the corner to the split point).
-            let cap = CLEARANCE_SPACINGS * self.min_spacing * corner.distance(plane)
-                / c.point.distance(point);
             c.along.is_none_or(|along| {
+                let corner = c.plane();
+                // The chart length of CLEARANCE_SPACINGS minimum spacings here (the chart's
+                // scale from the corner to the split point).
+                let cap = CLEARANCE_SPACINGS * self.min_spacing * corner.distance(plane)
+                    / c.point.distance(point);
                 along.iter().all(|&(other, other_height)| {
                     let level =
                         c.height.abs().max(other_height.abs()) <= LEVEL_SPACINGS * self.min_spacing;
