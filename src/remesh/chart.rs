@@ -480,6 +480,20 @@ impl SphereEdges {
     /// point's scan is to stop, it stops at once (the pattern search in [`choose_pole`]
     /// tries eight moves around its pole each step, most of them no farther out).
     fn distance_beyond(&self, c: DVec3, floor: f64, start: usize) -> (f64, usize) {
+        self.distance_beyond_blocked(c, floor, start, &[])
+    }
+
+    /// [`Self::distance_beyond`], trying the edges `blockers` first: the edges that stopped
+    /// the scans of points near `c` (a pole's moves are stopped by the few edges nearest to
+    /// it, which the scan from one of them may reach only after most of the loop). The same
+    /// result: a scan that some edge stops returns minus infinity, whichever edge it is.
+    fn distance_beyond_blocked(
+        &self,
+        c: DVec3,
+        floor: f64,
+        start: usize,
+        blockers: &[usize],
+    ) -> (f64, usize) {
         // The chord² of `floor`, lowered a little so that rounding never stops a scan whose
         // distance would come out above `floor`.
         let stop = if floor > 0.0 {
@@ -488,6 +502,13 @@ impl SphereEdges {
         } else {
             f64::NEG_INFINITY
         };
+        for &k in blockers {
+            if let Some(&(a, b, n)) = self.edges.get(k) {
+                if arc_chord_squared(c, a, b, n) < stop {
+                    return (f64::NEG_INFINITY, k);
+                }
+            }
+        }
         let start = if start < self.edges.len() { start } else { 0 };
         let (before, from) = self.edges.split_at(start);
         let mut best = f64::INFINITY;
@@ -705,20 +726,27 @@ fn choose_pole(
     let mut near = coarse.distance_beyond(best, f64::NEG_INFINITY, 0).1;
     // Pattern search: move the pole away from the boundary while it improves.
     let mut step = 0.5 * (4.0 * std::f64::consts::PI / POLE_CANDIDATES as f64).sqrt();
+    // The edges that stopped the last moves' scans, latest last: tried first.
+    let mut blockers: Vec<usize> = Vec::with_capacity(BLOCKERS + 1);
     for _ in 0..40 {
         let (t1, t2) = best.any_orthonormal_pair();
-        let mut moves: Vec<(f64, DVec3, usize)> = (0..8)
-            .filter_map(|k| {
-                let (s, c) = (k as f64 * std::f64::consts::FRAC_PI_4).sin_cos();
-                let dir = t1 * c + t2 * s;
-                (best * step.cos() + dir * step.sin()).try_normalize()
-            })
-            .map(|c| {
-                let (score, nearest) = coarse.distance_beyond(c, best_score, near);
-                (score, c, nearest)
-            })
-            .filter(|&(s, _, _)| s > best_score)
-            .collect();
+        let mut moves: Vec<(f64, DVec3, usize)> = Vec::with_capacity(8);
+        for k in 0..8 {
+            let (s, c) = (k as f64 * std::f64::consts::FRAC_PI_4).sin_cos();
+            let dir = t1 * c + t2 * s;
+            let Some(c) = (best * step.cos() + dir * step.sin()).try_normalize() else {
+                continue;
+            };
+            let (score, nearest) = coarse.distance_beyond_blocked(c, best_score, near, &blockers);
+            if score > best_score {
+                moves.push((score, c, nearest));
+            } else if score == f64::NEG_INFINITY && !blockers.contains(&nearest) {
+                blockers.push(nearest);
+                if blockers.len() > BLOCKERS {
+                    blockers.remove(0);
+                }
+            }
+        }
         moves.sort_by(|a, b| b.0.total_cmp(&a.0));
         // (A move no longer than the pole's clearance cannot reach an edge.)
         let allowed =
@@ -741,6 +769,11 @@ fn choose_pole(
     }
     Some((best, best_distance))
 }
+
+/// Edges that stopped recent moves' scans the pole search tries first
+/// ([`SphereEdges::distance_beyond_blocked`]): a pole at its best is about as far from two
+/// or three edges, which stop every move.
+const BLOCKERS: usize = 4;
 
 /// Largest number of horizontal slabs of an [`EdgeIndex`].
 const MAX_SLABS: usize = 4096;
@@ -901,6 +934,10 @@ mod tests {
                 for floor in [0.5 * fast, 2.0 * fast] {
                     let (d, _) = edges.distance_beyond(c, floor, start);
                     assert!(if floor < fast { d == fast } else { d <= floor });
+                    // Whatever edges are tried first.
+                    let blockers = [start % 14, (start + 5) % 14, 99];
+                    let (e, _) = edges.distance_beyond_blocked(c, floor, start, &blockers);
+                    assert_eq!(e, d);
                 }
             }
         }

@@ -159,8 +159,7 @@ pub fn refine_arcs(rep: &Representation, settings: &RefineSettings) -> RefinedBo
 /// chart sees it: the orientation of the three points' closest points on `e` (the map the
 /// decoder's charts use by default; the stereographic projection preserves orientation),
 /// seen with the mesh's outward normal up.
-fn turns_left(e: &Ellipsoid, a: DVec3, b: DVec3, c: DVec3) -> bool {
-    let (p, q, r) = (e.closest_point(a), e.closest_point(b), e.closest_point(c));
+fn turns_left(e: &Ellipsoid, [p, q, r]: [DVec3; 3]) -> bool {
     e.sign.factor() * (q - p).cross(r - q).dot(e.outward_normal(q)) > 0.0
 }
 
@@ -185,18 +184,28 @@ pub fn prune_double_ears(
     if prune == Prune::Off {
         return 0;
     }
-    let at = |i: u32| points.get(i as usize).copied().unwrap_or_default();
-    let wide = |a: DVec3, c: DVec3| {
-        [left, right].iter().any(|e| {
-            let on_sphere = |x: DVec3| e.to_unit_sphere(e.closest_point(x));
+    // Each chain point's closest points on both ellipsoids, found once (the scan asks for
+    // each in up to three corners, and again after a removal).
+    let feet: Vec<[DVec3; 2]> = chain
+        .iter()
+        .map(|&i| {
+            let p = points.get(i as usize).copied().unwrap_or_default();
+            [left.closest_point(p), right.closest_point(p)]
+        })
+        .collect();
+    let wide = |a: usize, c: usize| {
+        [left, right].iter().enumerate().any(|(side, e)| {
+            let on_sphere = |k: usize| e.to_unit_sphere(feet[k][side]);
             let angle = on_sphere(a).angle_between(on_sphere(c));
             angle.is_nan() || angle > MAX_PRUNED_ANGLE
         })
     };
     let mut wide_ears = 0;
-    let mut conflict = |a: u32, b: u32, c: u32| {
-        let (a, b, c) = (at(a), at(b), at(c));
-        if !(turns_left(left, a, b, c) && turns_left(right, c, b, a)) {
+    // The corner at chain position b, between positions a and c.
+    let mut conflict = |a: usize, b: usize, c: usize| {
+        let on = |side: usize| [a, b, c].map(|k| feet[k][side]);
+        let [l, r] = [on(0), on(1)];
+        if !(turns_left(left, l) && turns_left(right, [r[2], r[1], r[0]])) {
             return false;
         }
         if !wide(a, c) {
@@ -206,8 +215,9 @@ pub fn prune_double_ears(
         prune == Prune::All
     };
     // One scan with backtracking: after a removal the previous point is checked again.
-    let mut kept: Vec<u32> = Vec::with_capacity(chain.len());
-    for &next in chain.iter() {
+    // Chain positions.
+    let mut kept: Vec<usize> = Vec::with_capacity(chain.len());
+    for next in 0..chain.len() {
         while kept.len() >= 2 {
             let (a, b) = (kept[kept.len() - 2], kept[kept.len() - 1]);
             if conflict(a, b, next) {
@@ -235,7 +245,7 @@ pub fn prune_double_ears(
     }
     let min_len = if closed { 3 } else { 2 };
     if kept.len() >= min_len {
-        *chain = kept;
+        *chain = kept.into_iter().map(|k| chain[k]).collect();
     }
     wide_ears
 }

@@ -152,6 +152,20 @@ impl RegionSurface {
         (self.raise(x, h), h)
     }
 
+    /// [`RegionSurface::point_and_height`], given a lower bound on the distance from the
+    /// ellipsoid's point at `q` to the boundary's feet (`clearance_of` of that point, e.g.
+    /// from nearby points' clearances by the triangle inequality), with such a bound for
+    /// the point itself ([`OffsetBlend::height_and_clearance`]). The same point and height.
+    pub fn point_height_and_clearance(
+        &self,
+        q: DVec2,
+        clearance_of: impl FnOnce(DVec3) -> f64,
+    ) -> (DVec3, f64, f64) {
+        let x = self.on_ellipsoid(q);
+        let (h, clearance) = self.blend.height_and_clearance(x, clearance_of(x));
+        (self.raise(x, h), h, clearance)
+    }
+
     /// The point at chart position `q` raised by `height` along the ellipsoid's outward
     /// normal (the surface itself where `height` is the blended height there).
     pub fn at_height(&self, q: DVec2, height: f64) -> DVec3 {
@@ -237,6 +251,25 @@ const CELL_FILL: f64 = 0.75;
 struct Segment {
     foot: [DVec3; 2],
     height: [f64; 2],
+    /// `foot[1] - foot[0]`, its squared length and its length: computed once, not per
+    /// query (a query weighs tens of segments).
+    along: DVec3,
+    length2: f64,
+    length: f64,
+}
+
+impl Segment {
+    fn new(foot: [DVec3; 2], height: [f64; 2]) -> Segment {
+        let along = foot[1] - foot[0];
+        let length2 = along.length_squared();
+        Segment {
+            foot,
+            height,
+            along,
+            length2,
+            length: length2.sqrt(),
+        }
+    }
 }
 
 impl OffsetBlend {
@@ -263,15 +296,12 @@ impl OffsetBlend {
                 let (Some((fa, oa)), Some((fb, ob))) = (ends(k), ends((k + 1) % lp.len())) else {
                     continue;
                 };
-                segments.push(Segment {
-                    foot: [fa, fb],
-                    height: [oa, ob],
-                });
+                segments.push(Segment::new([fa, fb], [oa, ob]));
             }
         }
         let max_band = (BLEND_REACH * longest).max(min_band);
         let reach = WEIGHT_REACH * max_band;
-        let length: f64 = segments.iter().map(|s| s.foot[0].distance(s.foot[1])).sum();
+        let length: f64 = segments.iter().map(|s| s.length).sum();
         let (lo, hi) = feet.iter().fold(
             (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
             |(lo, hi), &f| (lo.min(f), hi.max(f)),
@@ -370,8 +400,25 @@ impl OffsetBlend {
     /// that height (at least the minimum band) from the nearest foot. Exact at the feet;
     /// zero beyond the widest band.
     pub fn height(&self, x: DVec3) -> f64 {
-        if self.segments.is_empty() || !x.is_finite() {
-            return 0.0;
+        self.height_and_clearance(x, f64::NEG_INFINITY).0
+    }
+
+    /// [`OffsetBlend::height`] at `x`, given `clearance`, a lower bound on the distance from
+    /// `x` to the boundary's feet (minus infinity when none is known), and such a bound for
+    /// `x` found on the way (the nearest foot's distance, at most the reach). Where the
+    /// bound is at least the widest band the height is zero, found without a search: most
+    /// vertex additions ask for points deep inside the region, whose neighbours' bounds
+    /// less the distance to them tell so.
+    pub fn height_and_clearance(&self, x: DVec3, clearance: f64) -> (f64, f64) {
+        if self.segments.is_empty() {
+            return (0.0, f64::INFINITY);
+        }
+        if !x.is_finite() {
+            return (0.0, 0.0);
+        }
+        // A margin for the rounding of the bound's distances.
+        if clearance >= self.max_band * (1.0 + CLEARANCE_MARGIN) {
+            return (0.0, clearance);
         }
         let centre = cell_of(x, self.side);
         // The three cells along z of each (x, y) column are one run of entries.
@@ -383,8 +430,11 @@ impl OffsetBlend {
             *run = self.run(centre[0] + dx, centre[1] + dy, centre[2]);
         }
         if runs.iter().all(|(from, to)| from == to) {
-            return 0.0;
+            return (0.0, self.reach);
         }
+        // Nearest of the segments the cells give (those beyond the reach too): with the
+        // reach, a lower bound on the distance to every segment.
+        let mut nearest_any = self.reach;
         let mut nearest = f64::INFINITY;
         let mut weights = 0.0;
         let mut sum = 0.0;
@@ -392,9 +442,7 @@ impl OffsetBlend {
         let beyond = self.reach * self.reach * (1.0 + 1e-12);
         // A segment's weight and height added in; its height when `x` lies on it.
         let mut weigh = |s: &Segment| -> Option<f64> {
-            let [a, b] = s.foot;
-            let ab = b - a;
-            let length2 = ab.length_squared();
+            let (a, ab, length2) = (s.foot[0], s.along, s.length2);
             let t = if length2 > 0.0 {
                 ((x - a).dot(ab) / length2).clamp(0.0, 1.0)
             } else {
@@ -406,6 +454,7 @@ impl OffsetBlend {
                 return None;
             }
             let d = d2.sqrt();
+            nearest_any = nearest_any.min(d);
             let height = s.height[0] + (s.height[1] - s.height[0]) * t;
             if d <= 0.0 {
                 return Some(height);
@@ -415,7 +464,7 @@ impl OffsetBlend {
             }
             nearest = nearest.min(d);
             let taper = 1.0 - (d / self.reach) * (d / self.reach);
-            let w = length2.sqrt() * taper * taper / (d * d * d);
+            let w = s.length * taper * taper / (d * d * d);
             weights += w;
             sum += w * height;
             None
@@ -453,22 +502,26 @@ impl OffsetBlend {
             }
         });
         if let Some(height) = exact {
-            return height;
+            return (height, 0.0);
         }
         if !(nearest < self.max_band && weights > 0.0 && weights.is_finite()) {
-            return 0.0;
+            return (0.0, nearest_any);
         }
         let height = sum / weights;
         let band = (BLEND_REACH * height.abs()).max(self.min_band);
         let s = (nearest / band).min(1.0);
         let out = height * (1.0 - s * s * (3.0 - 2.0 * s));
         if out.is_finite() {
-            out
+            (out, nearest_any)
         } else {
-            0.0
+            (0.0, nearest_any)
         }
     }
 }
+
+/// Relative margin by which a clearance must exceed the widest band to skip the search
+/// ([`OffsetBlend::height_and_clearance`]): its distances are rounded.
+const CLEARANCE_MARGIN: f64 = 1e-9;
 
 /// The cubic cell of side `side` holding `p` (coordinates clamped far inside i64).
 fn cell_of(p: DVec3, side: f64) -> [i64; 3] {
@@ -664,6 +717,60 @@ mod tests {
             blended += usize::from(h != 0.0);
         }
         assert!(blended > 1000, "{blended}");
+    }
+
+    /// The clearance a height comes with is a lower bound on the distance to every segment,
+    /// and a point given such a bound (here its own, and neighbours' less the distance to
+    /// them) gets the same height, to the bit, as without one.
+    #[test]
+    fn clearances_are_lower_bounds_and_change_no_height() {
+        let mut rng = crate::rng::SplitMix64::new(11);
+        let n = 50;
+        let feet: Vec<DVec3> = (0..n)
+            .map(|k| {
+                let t = std::f64::consts::TAU * k as f64 / n as f64;
+                DVec3::new(t.cos(), t.sin(), 0.05 * (5.0 * t).cos())
+            })
+            .collect();
+        let heights: Vec<f64> = (0..n).map(|k| 0.01 + 0.01 * (k % 4) as f64).collect();
+        let b = OffsetBlend::new(&feet, &heights, &[(0..n as u32).collect()], 0.01);
+        let nearest_foot = |x: DVec3| {
+            b.segments
+                .iter()
+                .map(|s| {
+                    let t = ((x - s.foot[0]).dot(s.along) / s.length2).clamp(0.0, 1.0);
+                    (s.foot[0] + s.along * t).distance(x)
+                })
+                .fold(f64::INFINITY, f64::min)
+        };
+        let (mut skipped, mut blended) = (0, 0);
+        for _ in 0..4000 {
+            let x = DVec3::new(
+                2.4 * rng.next_f64() - 1.2,
+                2.4 * rng.next_f64() - 1.2,
+                0.2 * rng.next_f64() - 0.1,
+            );
+            let (h, clearance) = b.height_and_clearance(x, f64::NEG_INFINITY);
+            assert_eq!(h.to_bits(), b.height(x).to_bits());
+            assert!(clearance <= nearest_foot(x), "{x}: {clearance}");
+            // Its own bound, and one carried over from the last point.
+            assert_eq!(
+                b.height_and_clearance(x, clearance).0.to_bits(),
+                h.to_bits()
+            );
+            // A point nearby, its bound carried over by the triangle inequality.
+            let y = x + 0.05 * (DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) - 0.5);
+            let carried = clearance - x.distance(y);
+            let (g, bound) = b.height_and_clearance(y, carried);
+            assert_eq!(g.to_bits(), b.height(y).to_bits(), "{y}");
+            assert!(bound <= nearest_foot(y), "{y}: {bound}");
+            skipped += usize::from(carried >= b.max_band);
+            blended += usize::from(h != 0.0);
+        }
+        assert!(
+            blended > 100 && skipped > 100,
+            "{blended} blended, {skipped} skipped"
+        );
     }
 
     #[test]

@@ -92,18 +92,23 @@ struct Vertex {
     /// For a boundary vertex, the chart positions and heights of its neighbours along its
     /// (first) loop.
     along: Option<[(DVec2, f64); 2]>,
+    /// A lower bound on the distance from its foot on the ellipsoid to the boundary's feet
+    /// (zero on the boundary; [`RegionSurface::point_height_and_clearance`]).
+    clearance: f64,
 }
 
 impl Vertex {
     /// An interior vertex: at `plane` in the chart, at `point` (at `height` above the
-    /// ellipsoid) on the surface, the region's `index`-th interior vertex.
-    fn interior(plane: DVec2, (point, height): (DVec3, f64), index: u32) -> Vertex {
+    /// ellipsoid) on the surface, the region's `index`-th interior vertex, its foot at least
+    /// `clearance` from the boundary's.
+    fn interior(plane: DVec2, (point, height, clearance): Lifted, index: u32) -> Vertex {
         Vertex {
             position: to_point(plane),
             point,
             height,
             corner: Corner::Interior(index),
             along: None,
+            clearance,
         }
     }
 
@@ -120,6 +125,10 @@ impl HasPosition for Vertex {
         self.position
     }
 }
+
+/// A chart position's surface point, its height above the ellipsoid and its foot's clearance
+/// from the boundary's feet ([`RegionSurface::point_height_and_clearance`]).
+type Lifted = (DVec3, f64, f64);
 
 /// The face data says whether the face lies inside the region.
 type Cdt = ConstrainedDelaunayTriangulation<Vertex, (), (), bool>;
@@ -252,6 +261,7 @@ impl RegionCdt {
                     height: heights[i as usize],
                     corner: Corner::Boundary(i),
                     along: Some([level_of(previous), level_of(next)]),
+                    clearance: 0.0,
                 };
                 let before = cdt.num_vertices();
                 let inserted = match hint {
@@ -374,12 +384,13 @@ impl RegionCdt {
     fn insert_interior(
         &mut self,
         plane: DVec2,
-        (point, height): (DVec3, f64),
+        lifted: Lifted,
         hint: FixedVertexHandle,
     ) -> Option<FixedVertexHandle> {
         let index = u32::try_from(self.interior.len()).ok()?;
         let before = self.cdt.num_vertices();
-        let vertex = Vertex::interior(plane, (point, height), index);
+        let vertex = Vertex::interior(plane, lifted, index);
+        let point = vertex.point;
         let handle = self.cdt.insert_with_hint(vertex, hint).ok()?;
         if self.cdt.num_vertices() == before {
             return None;
@@ -728,7 +739,15 @@ impl AdaptiveTriangulation {
                 .map(|h| self.inner.cdt.vertex(h).position())
                 .map(|p| DVec2::new(p.x, p.y));
             let plane = (qa + qb + qc) / 3.0;
-            let point = self.inner.surface.point_and_height(plane);
+            // Its foot's clearance from the corners' (the foot of a corner lies its height
+            // from it): where all are deep inside the region the height is zero at once.
+            let corners = candidate.corners.map(|h| *self.inner.cdt.vertex(h).data());
+            let point = self.inner.surface.point_height_and_clearance(plane, |x| {
+                corners
+                    .iter()
+                    .map(|c| c.clearance - c.height.abs() - c.point.distance(x))
+                    .fold(f64::NEG_INFINITY, f64::max)
+            });
             // A face that is not turned is not split into one that is and cannot be split in
             // turn (a turned face is split whatever it gives: nothing is lost).
             let verdict = if candidate.error.is_finite() {
@@ -835,7 +854,7 @@ impl AdaptiveTriangulation {
     /// may be turned and mended by the next (the blobs' first splits, a finger's tip), only
     /// not into a turned face that cannot be split ([`Self::split_point`]). A refused face
     /// stays as it is.
-    fn judge_split(&self, candidate: &Candidate, plane: DVec2, point: (DVec3, f64)) -> Verdict {
+    fn judge_split(&self, candidate: &Candidate, plane: DVec2, point: Lifted) -> Verdict {
         let handles = candidate.corners.map(|h| self.inner.cdt.vertex(h));
         let corners = handles.each_ref().map(|v| v.data());
         // Never inserted: its index is not used.
@@ -1120,7 +1139,7 @@ impl RegionCdt {
     /// The grid points with `rows` elevations and 2·`rows` azimuths that lie inside the region
     /// (in an inside face of the boundary-only triangulation) and at least half an elevation
     /// step from every boundary edge, as (chart position, (point on the surface, its height)), row by row.
-    fn grid_points(&self, rows: f64, target: usize) -> Vec<(DVec2, (DVec3, f64))> {
+    fn grid_points(&self, rows: f64, target: usize) -> Vec<(DVec2, Lifted)> {
         use std::f64::consts::{FRAC_PI_2, PI};
         let (low, high) = self.elevation_range();
         let budget = (16.0 * target as f64).max(MIN_GRID_BUDGET);
@@ -1166,7 +1185,11 @@ impl RegionCdt {
                 if !*face.data() || near.is_near(u) {
                     continue;
                 }
-                points.push((plane, self.surface.point_and_height(plane)));
+                points.push((
+                    plane,
+                    self.surface
+                        .point_height_and_clearance(plane, |_| f64::NEG_INFINITY),
+                ));
             }
         }
         points
