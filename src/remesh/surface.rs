@@ -432,9 +432,6 @@ impl OffsetBlend {
         if runs.iter().all(|(from, to)| from == to) {
             return (0.0, self.reach);
         }
-        // Nearest of the segments the cells give (those beyond the reach too): with the
-        // reach, a lower bound on the distance to every segment.
-        let mut nearest_any = self.reach;
         let mut nearest = f64::INFINITY;
         let mut weights = 0.0;
         let mut sum = 0.0;
@@ -454,7 +451,6 @@ impl OffsetBlend {
                 return None;
             }
             let d = d2.sqrt();
-            nearest_any = nearest_any.min(d);
             let height = s.height[0] + (s.height[1] - s.height[0]) * t;
             if d <= 0.0 {
                 return Some(height);
@@ -504,17 +500,20 @@ impl OffsetBlend {
         if let Some(height) = exact {
             return (height, 0.0);
         }
+        // The nearest segment within the reach, else the reach (the cells give every segment
+        // nearer than it): a lower bound on the distance to every segment.
+        let clearance = nearest.min(self.reach);
         if !(nearest < self.max_band && weights > 0.0 && weights.is_finite()) {
-            return (0.0, nearest_any);
+            return (0.0, clearance);
         }
         let height = sum / weights;
         let band = (BLEND_REACH * height.abs()).max(self.min_band);
         let s = (nearest / band).min(1.0);
         let out = height * (1.0 - s * s * (3.0 - 2.0 * s));
         if out.is_finite() {
-            (out, nearest_any)
+            (out, clearance)
         } else {
-            (0.0, nearest_any)
+            (0.0, clearance)
         }
     }
 }

@@ -734,14 +734,12 @@ impl AdaptiveTriangulation {
                 continue;
             }
             // The same split point push_face checked (the face is unchanged).
-            let [qa, qb, qc] = candidate
-                .corners
-                .map(|h| self.inner.cdt.vertex(h).position())
-                .map(|p| DVec2::new(p.x, p.y));
+            let handles = candidate.corners.map(|h| self.inner.cdt.vertex(h));
+            let corners = handles.each_ref().map(|v| v.data());
+            let [qa, qb, qc] = corners.map(Vertex::plane);
             let plane = (qa + qb + qc) / 3.0;
             // Its foot's clearance from the corners' (the foot of a corner lies its height
             // from it): where all are deep inside the region the height is zero at once.
-            let corners = candidate.corners.map(|h| *self.inner.cdt.vertex(h).data());
             let point = self.inner.surface.point_height_and_clearance(plane, |x| {
                 corners
                     .iter()
