@@ -1041,14 +1041,14 @@ fn region_crossings(
     ) else {
         return (None, 0);
     };
-    // Segments in the plane: (a, b, which point to drop if it crosses).
+    // Segments in the plane: (a, b, which point to drop if it crosses). Each point is
+    // charted once (its closest point is iterative), not once per segment.
     let mut segments: Vec<(glam::DVec2, glam::DVec2, Droppable)> = Vec::new();
-    for lp in &loops {
-        for (k, &(p, tag)) in lp.iter().enumerate() {
-            let Some(&(q, next_tag)) = lp.get(k + 1).or(lp.first()) else {
-                continue;
-            };
-            let (a, b) = (chart.to_plane(p), chart.to_plane(q));
+    for (lp, points) in loops.iter().zip(&loop_points) {
+        let planes: Vec<glam::DVec2> = points.iter().map(|&p| chart.to_plane(p)).collect();
+        for (k, (&a, &(_, tag))) in planes.iter().zip(lp).enumerate() {
+            let next = (k + 1) % lp.len();
+            let (b, next_tag) = (planes[next], lp[next].1);
             if a.is_finite() && b.is_finite() {
                 segments.push((a, b, tag.or(next_tag)));
             }
