@@ -1254,6 +1254,61 @@ fn a_region_whose_outer_loop_collapsed_keeps_its_other_loops() {
     assert!(!chart.contains(DVec3::Z));
 }
 
+/// Two separate pieces of a surface whose borders lie at the same positions (crossed cards
+/// whose corners quantisation brought together: Wuson's whiskers in assimp's test models)
+/// stay apart: two domes over one equator, each region on the left of its border loop, so
+/// that glued, every equator edge would be run the same way by both its faces.
+#[test]
+fn separate_pieces_whose_borders_meet_stay_apart() {
+    use ellip::ellipsoid::Ellipsoid;
+    use ellip::representation::{Arc, ArcRef, Cycle, Metadata, Side};
+    let n = 24u32;
+    // The equator, counter-clockwise seen from above: the domes on its left.
+    let equator: Vec<DVec3> = (0..n)
+        .map(|i| {
+            let lon = std::f64::consts::TAU * i as f64 / n as f64;
+            DVec3::new(lon.cos(), lon.sin(), 0.0)
+        })
+        .collect();
+    let flat = Ellipsoid {
+        radii: DVec3::new(1.0, 1.0, 0.5),
+        ..Ellipsoid::sphere(DVec3::ZERO, 1.0)
+    };
+    let border = |from: u32, left: u32| Arc {
+        points: (from..from + n).collect(),
+        closed: true,
+        left,
+        right: Side::Border,
+    };
+    let cycle = |arc: u32| {
+        vec![Cycle {
+            arcs: vec![ArcRef {
+                arc,
+                reversed: false,
+            }],
+            outer: true,
+        }]
+    };
+    let rep = Representation {
+        ellipsoids: vec![Ellipsoid::sphere(DVec3::ZERO, 1.0), flat],
+        points: [equator.clone(), equator].concat(),
+        arcs: vec![border(0, 0), border(n, 1)],
+        cycles: vec![cycle(0), cycle(1)],
+        metadata: Metadata::default(),
+    };
+    rep.validate().unwrap();
+    let out = remesh(&rep, &options(1000, Scheme::Adaptive)).unwrap();
+    assert_clean(&out, "two domes");
+    assert!(out.check.consistently_oriented && out.check.manifold);
+    // Each dome keeps its own border loop (the equator's points and those refinement put
+    // between them), sharing no vertex with the other.
+    assert_eq!(out.check.border_loops, 2);
+    let loops = out.mesh.topology().boundary_loops();
+    assert_eq!(loops.len(), 2);
+    assert!(loops[0].len() >= n as usize && loops[0].len() == loops[1].len());
+    assert!(loops[0].iter().all(|v| !loops[1].contains(v)));
+}
+
 /// Untangling drops boundary points until a region's loops stop crossing in its chart; where
 /// a whole loop folds (the closest points of a boundary deep inside a thin ellipsoid jump
 /// between its sides), that leaves a triangle, turned over. The decoder then tries charting

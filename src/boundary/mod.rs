@@ -55,7 +55,7 @@ mod smooth;
 
 pub use smooth::{smooth_boundaries, SmoothOptions, DEFAULT_EPSILON, DEFAULT_ITERATIONS};
 
-use crate::mesh::Mesh;
+use crate::mesh::{find_root, join_sets, Mesh};
 use glam::DVec3;
 use serde::Serialize;
 
@@ -505,28 +505,17 @@ fn label_pieces(mesh: &Mesh, sides: &Sides, labels: &[u32]) -> Pieces {
     let faces = mesh.faces();
     let positions = mesh.positions();
     let mut root: Vec<u32> = (0..mesh.vertex_count() as u32).collect();
-    let find = |root: &mut Vec<u32>, mut v: u32| {
-        while root[v as usize] != v {
-            let up = root[root[v as usize] as usize];
-            root[v as usize] = up;
-            v = up;
-        }
-        v
-    };
     let border_sides = || (0..faces.len() as u32 * 3).filter(|&h| sides.twin[h as usize] == NONE);
     for h in border_sides() {
         let (a, b) = side_ends(faces, h);
-        let (ra, rb) = (find(&mut root, a), find(&mut root, b));
-        if ra != rb {
-            root[ra.max(rb) as usize] = ra.min(rb);
-        }
+        join_sets(&mut root, a, b);
     }
     let mut node_of_root = vec![NONE; mesh.vertex_count()];
     let mut vector_area: Vec<DVec3> = Vec::new();
     let mut border_node = vec![NONE; faces.len() * 3];
     for h in border_sides() {
         let (a, b) = side_ends(faces, h);
-        let r = find(&mut root, a) as usize;
+        let r = find_root(&mut root, a) as usize;
         if node_of_root[r] == NONE {
             node_of_root[r] = piece_count + vector_area.len() as u32;
             vector_area.push(DVec3::ZERO);

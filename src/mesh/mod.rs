@@ -14,6 +14,7 @@ mod topology;
 
 pub(crate) use topology::orientation_flips;
 pub use topology::Topology;
+pub(crate) use topology::{find_root, join_sets};
 
 use glam::DVec3;
 use serde::Serialize;

@@ -409,6 +409,24 @@ fn build_vertex_faces(vertex_count: usize, faces: &[[u32; 3]]) -> (Vec<u32>, Vec
     (offsets, incident)
 }
 
+/// The representative of `v`'s set in a union–find forest over `0..parent.len()` (a root is
+/// its own parent), halving the path on the way.
+pub(crate) fn find_root(parent: &mut [u32], mut v: u32) -> u32 {
+    while parent[v as usize] != v {
+        let up = parent[parent[v as usize] as usize];
+        parent[v as usize] = up;
+        v = up;
+    }
+    v
+}
+
+/// Joins the sets of `a` and `b` under the lower of their two roots, so that each set's
+/// root is its smallest member.
+pub(crate) fn join_sets(parent: &mut [u32], a: u32, b: u32) {
+    let (ra, rb) = (find_root(parent, a), find_root(parent, b));
+    parent[ra.max(rb) as usize] = ra.min(rb);
+}
+
 /// Corner of `face` holding vertex `v` (which it must contain).
 fn corner_of(face: &[u32; 3], v: u32) -> usize {
     face.iter()

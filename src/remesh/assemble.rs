@@ -33,7 +33,7 @@ use super::triangulate::{
 };
 use super::{RemeshError, RemeshOptions, Remeshed, Scheme};
 use crate::ellipsoid::{Ellipsoid, NormalSide};
-use crate::mesh::Mesh;
+use crate::mesh::{find_root, join_sets, Mesh};
 use crate::representation::{Representation, Side};
 use glam::DVec3;
 use std::cmp::Ordering;
@@ -729,9 +729,11 @@ impl Plan<'_> {
             return Ok(None);
         }
         let mut pool = Pool::new(&refined.points);
+        let surface_piece = surface_pieces(rep);
         let mut pieces = Vec::with_capacity(rep.region_count());
         for (r, cycles) in rep.cycles.iter().enumerate() {
             let region = r as u32;
+            let on = surface_piece.get(r).copied().unwrap_or(region);
             let Some(ellipsoid) = rep.ellipsoids.get(r) else {
                 continue;
             };
@@ -757,9 +759,9 @@ impl Plan<'_> {
                     };
                     let closed = rep.arcs.get(r.arc as usize).is_some_and(|a| a.closed);
                     let ids: Vec<u32> = if r.reversed {
-                        chain.iter().rev().map(|&i| pool.id(i)).collect()
+                        chain.iter().rev().map(|&i| pool.id(i, on)).collect()
                     } else {
-                        chain.iter().map(|&i| pool.id(i)).collect()
+                        chain.iter().map(|&i| pool.id(i, on)).collect()
                     };
                     // Consecutive open arcs share their junction: skip each one's first point.
                     lp.extend(ids.into_iter().skip(usize::from(!closed)));
@@ -1092,12 +1094,21 @@ fn whole_regions(rep: &Representation) -> impl Iterator<Item = usize> + '_ {
         .map(|(r, _)| r)
 }
 
-/// The global vertex pool: refined boundary points, each position once.
+/// The global vertex pool: refined boundary points, each position once per piece of the
+/// surface.
+///
+/// Points at one position are one vertex, so that the regions around a loop quantisation
+/// collapsed are glued directly (see [`Plan::pieces`]); but only within one piece of the
+/// surface ([`surface_pieces`]). Separate pieces whose borders quantisation brought
+/// together stay apart, as they were in the source: glued, two such borders became one edge
+/// run the same way by both its faces (Wuson, a toy from assimp's test models whose
+/// whiskers are crossed cards, decoded not consistently oriented).
 struct Pool<'a> {
     refined: &'a [DVec3],
     /// Refined point index → vertex id (u32::MAX: not yet used).
     id_of: Vec<u32>,
-    by_position: HashMap<[u64; 3], u32>,
+    /// (piece of the surface, position) → vertex id.
+    by_position: HashMap<(u32, [u64; 3]), u32>,
     positions: Vec<DVec3>,
 }
 
@@ -1111,13 +1122,14 @@ impl<'a> Pool<'a> {
         }
     }
 
-    /// The vertex of refined point `i` (indices come from [`refine_arcs`], so in range).
-    fn id(&mut self, i: u32) -> u32 {
+    /// The vertex of refined point `i` (indices come from [`refine_arcs`], so in range), on
+    /// piece `piece` of the surface if it is new.
+    fn id(&mut self, i: u32, piece: u32) -> u32 {
         match self.id_of.get(i as usize) {
             Some(&id) if id != u32::MAX => id,
             Some(_) => {
                 let p = self.refined.get(i as usize).copied().unwrap_or_default();
-                let id = self.add(p);
+                let id = self.add(p, piece);
                 if let Some(slot) = self.id_of.get_mut(i as usize) {
                     *slot = id;
                 }
@@ -1127,10 +1139,11 @@ impl<'a> Pool<'a> {
         }
     }
 
-    /// A vertex at `p`: the existing one at exactly this position, or a new one.
-    fn add(&mut self, p: DVec3) -> u32 {
+    /// A vertex at `p` on piece `piece` of the surface: the existing one at exactly this
+    /// position on that piece, or a new one.
+    fn add(&mut self, p: DVec3, piece: u32) -> u32 {
         // +0.0 and −0.0 are the same position.
-        let key = (p + DVec3::ZERO).to_array().map(f64::to_bits);
+        let key = (piece, (p + DVec3::ZERO).to_array().map(f64::to_bits));
         let next = self.positions.len() as u32;
         *self.by_position.entry(key).or_insert_with(|| {
             self.positions.push(p);
@@ -1141,6 +1154,23 @@ impl<'a> Pool<'a> {
     fn position(&self, v: u32) -> DVec3 {
         self.positions.get(v as usize).copied().unwrap_or_default()
     }
+}
+
+/// Per region, the piece of the surface it lies on: the smallest region reached from it
+/// across arcs between two regions. Two pieces of the source that touch only at a vertex
+/// count as two (that vertex is one pool point either way).
+fn surface_pieces(rep: &Representation) -> Vec<u32> {
+    let n = rep.region_count();
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    for arc in &rep.arcs {
+        let (a, Some(b)) = (arc.left, arc.right.region()) else {
+            continue;
+        };
+        if (a as usize) < n && (b as usize) < n {
+            join_sets(&mut parent, a, b);
+        }
+    }
+    (0..n as u32).map(|r| find_root(&mut parent, r)).collect()
 }
 
 /// `ids` as a closed loop without consecutive repeats (the last compared with the first).
@@ -1445,7 +1475,10 @@ fn split_whole(
         MIN_EQUATOR_POINTS
     };
     let ring: Vec<u32> = (0..count)
-        .map(|k| pool.add(on_equator(std::f64::consts::TAU * k as f64 / count as f64)))
+        .map(|k| {
+            let t = std::f64::consts::TAU * k as f64 / count as f64;
+            pool.add(on_equator(t), region)
+        })
         .collect();
     let ring = without_repeats(ring);
     if ring.len() < 3 {
