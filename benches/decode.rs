@@ -11,6 +11,11 @@
 //! Budgets of 40 000 vertices and more are met by subdivision (`remesh::subdivide`).
 //! Target (issue 6): at least 1M output triangles per second.
 //!
+//! With `-- --scaling`: each file decoded by vertex addition alone at [`SCALING_VERTICES`]
+//! vertices, the median milliseconds at each and the microseconds each vertex added since
+//! the budget before cost: how a decode's time splits into a part per vertex and a part that
+//! does not grow with the budget (planning each region).
+//!
 //! The meshes come from `../shared/meshes`; without it the blob fixtures are used.
 
 use ellip::encode::{encode_mesh, EncodeSettings};
@@ -38,6 +43,10 @@ fn median_seconds(mut run: impl FnMut()) -> f64 {
     seconds.sort_by(f64::total_cmp);
     seconds[seconds.len() / 2]
 }
+
+/// The budgets of `--scaling` (below [`ellip::remesh::SUBDIVISION_COARSE_VERTICES`] times
+/// four, so that every vertex is placed by vertex addition).
+const SCALING_VERTICES: [usize; 5] = [1_000, 2_000, 5_000, 10_000, 20_000];
 
 const MIN_RUNS: usize = 5;
 const MIN_SECONDS: f64 = 0.5;
@@ -73,8 +82,14 @@ fn main() {
             })
             .collect()
     };
-    println!("| file | K | bytes | target triangles | triangles | vertices | ms (median) | triangles / s | spade bulk load, ms | ratio |");
-    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let scaling = std::env::args().any(|a| a == "--scaling");
+    if scaling {
+        println!("| file | K | vertices | ms (median) | µs per vertex since the budget before |");
+        println!("|---|---:|---:|---:|---:|");
+    } else {
+        println!("| file | K | bytes | target triangles | triangles | vertices | ms (median) | triangles / s | spade bulk load, ms | ratio |");
+        println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    }
     for (path, k, mode) in cases {
         let Ok(imported) = read_mesh(&path, &ImportOptions::default()) else {
             eprintln!("skipping {}", path.display());
@@ -91,6 +106,37 @@ fn main() {
         let bytes = encode_mesh(&imported.mesh, &settings, &mut |_| {})
             .expect("encodes")
             .bytes;
+        let name = path.file_stem().unwrap_or_default().to_string_lossy();
+        if scaling {
+            let mut before: Option<(usize, f64)> = None;
+            for target in SCALING_VERTICES {
+                let options = RemeshOptions {
+                    vertices: Some(target),
+                    subdivision: false,
+                    ..RemeshOptions::default()
+                };
+                let mut vertices = 0;
+                let median = median_seconds(|| {
+                    let rep = decode(&bytes, &Limits::default()).expect("decodes");
+                    vertices = remesh(&rep, &options)
+                        .expect("remeshes")
+                        .mesh
+                        .vertex_count();
+                });
+                let per_vertex = before.map_or(String::new(), |(v, t)| {
+                    format!(
+                        "{:.2}",
+                        1e6 * (median - t) / vertices.saturating_sub(v).max(1) as f64
+                    )
+                });
+                println!(
+                    "| {name} | {k} | {vertices} | {:.2} | {per_vertex} |",
+                    1e3 * median
+                );
+                before = Some((vertices, median));
+            }
+            continue;
+        }
         for target in [10_000usize, 100_000, 1_000_000] {
             let options = RemeshOptions {
                 // A closed triangle mesh has about twice as many triangles as vertices.
@@ -110,8 +156,7 @@ fn main() {
                 assert_eq!(dt.num_vertices(), points.len());
             });
             println!(
-                "| {} | {k} | {} | {target} | {} | {} | {:.2} | {:.0} | {:.2} | {:.1} |",
-                path.file_stem().unwrap_or_default().to_string_lossy(),
+                "| {name} | {k} | {} | {target} | {} | {} | {:.2} | {:.0} | {:.2} | {:.1} |",
                 bytes.len(),
                 counts.0,
                 counts.1,
