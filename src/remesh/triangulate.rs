@@ -1110,6 +1110,25 @@ pub fn triangulate_parametric(
             .filter_map(|k| points.get((k as f64 * stride) as usize).copied())
             .collect();
     }
+    // Lifted only now, for the points kept, in grid order: a point's clearance from the
+    // boundary's feet, less the distance from the point before, bounds the next one's, so
+    // the blend is searched only near the boundary (the same heights: see
+    // OffsetBlend::height_and_clearance).
+    let mut previous: Option<(DVec3, f64)> = None;
+    let points: Vec<(DVec2, Lifted)> = points
+        .into_iter()
+        .map(|plane| {
+            let mut foot = DVec3::NAN;
+            let lifted = inner.surface.point_height_and_clearance(plane, |x| {
+                foot = x;
+                previous.map_or(f64::NEG_INFINITY, |(p, clearance)| {
+                    clearance - p.distance(x)
+                })
+            });
+            previous = Some((foot, lifted.2));
+            (plane, lifted)
+        })
+        .collect();
     let mut hint = None;
     for (plane, point) in points {
         let at = match hint {
@@ -1158,8 +1177,8 @@ impl RegionCdt {
 
     /// The grid points with `rows` elevations and 2·`rows` azimuths that lie inside the region
     /// (in an inside face of the boundary-only triangulation) and at least half an elevation
-    /// step from every boundary edge, as (chart position, (point on the surface, its height)), row by row.
-    fn grid_points(&self, rows: f64, target: usize) -> Vec<(DVec2, Lifted)> {
+    /// step from every boundary edge, as chart positions, row by row.
+    fn grid_points(&self, rows: f64, target: usize) -> Vec<DVec2> {
         use std::f64::consts::{FRAC_PI_2, PI};
         let (low, high) = self.elevation_range();
         let budget = (16.0 * target as f64).max(MIN_GRID_BUDGET);
@@ -1182,9 +1201,14 @@ impl RegionCdt {
 
         let mut points = Vec::new();
         let mut hint: Option<FixedVertexHandle> = None;
+        // Where the row before began: the next row's first point is next to it (the last
+        // point of a row is half way round).
+        let mut row_start: Option<FixedVertexHandle> = None;
         for i in first..last {
             let elevation = -FRAC_PI_2 + (i as f64 + 0.5) * step;
             let (sin_el, cos_el) = elevation.sin_cos();
+            hint = row_start.or(hint);
+            row_start = None;
             for j in 0..columns {
                 let azimuth = (j as f64 + 0.5) * step;
                 let (sin_az, cos_az) = azimuth.sin_cos();
@@ -1202,14 +1226,11 @@ impl RegionCdt {
                 };
                 let face = self.cdt.face(face);
                 hint = Some(face.vertices()[0].fix());
+                row_start = row_start.or(hint);
                 if !*face.data() || near.is_near(u) {
                     continue;
                 }
-                points.push((
-                    plane,
-                    self.surface
-                        .point_height_and_clearance(plane, |_| f64::NEG_INFINITY),
-                ));
+                points.push(plane);
             }
         }
         points
