@@ -44,8 +44,8 @@ fn median_seconds(mut run: impl FnMut()) -> f64 {
     seconds[seconds.len() / 2]
 }
 
-/// The budgets of `--scaling` (below [`ellip::remesh::SUBDIVISION_COARSE_VERTICES`] times
-/// four, so that every vertex is placed by vertex addition).
+/// The budgets of `--scaling` (decoded with subdivision off: every vertex is placed by
+/// vertex addition).
 const SCALING_VERTICES: [usize; 5] = [1_000, 2_000, 5_000, 10_000, 20_000];
 
 const MIN_RUNS: usize = 5;
