@@ -1093,13 +1093,18 @@ pub fn triangulate_parametric(
     }
     let target = interior_vertices as f64;
     let share = inner.sphere_share().clamp(1e-12, 1.0);
-    let mut rows = (target / (2.0 * share)).sqrt().ceil();
-    let mut points = inner.grid_points(rows, interior_vertices);
+    let asked = (target / (2.0 * share)).sqrt().ceil();
+    let rows = inner.grid_rows(asked, interior_vertices);
+    let mut points = inner.grid_points(rows);
     if !points.is_empty() {
         let ratio = target / points.len() as f64;
         if !(0.9..=1.1).contains(&ratio) {
-            rows = (rows * ratio.sqrt()).ceil();
-            points = inner.grid_points(rows, interior_vertices);
+            // The same rows (both capped, as for a region whose share is far
+            // underestimated) give the same grid: it is not made again.
+            let resized = inner.grid_rows((asked * ratio.sqrt()).ceil(), interior_vertices);
+            if resized != rows {
+                points = inner.grid_points(resized);
+            }
         }
     }
     // A share estimate far off (hostile or degenerate boundaries) can still overshoot: keep
@@ -1175,23 +1180,30 @@ impl RegionCdt {
         area / (4.0 * std::f64::consts::PI)
     }
 
-    /// The grid points with `rows` elevations and 2·`rows` azimuths that lie inside the region
-    /// (in an inside face of the boundary-only triangulation) and at least half an elevation
-    /// step from every boundary edge, as chart positions, row by row.
-    fn grid_points(&self, rows: f64, target: usize) -> Vec<DVec2> {
-        use std::f64::consts::{FRAC_PI_2, PI};
+    /// The rows of the grid [`Self::grid_points`] makes when `rows` are asked for a target of
+    /// `target` points: whole, at least 2, and few enough that at most
+    /// max(16·`target`, [`MIN_GRID_BUDGET`]) grid points are tested.
+    fn grid_rows(&self, rows: f64, target: usize) -> f64 {
         let (low, high) = self.elevation_range();
         let budget = (16.0 * target as f64).max(MIN_GRID_BUDGET);
         // Rows within the range times 2·rows azimuths must stay within the budget, and a band
         // narrower than one row still costs a whole row: 2·rows azimuths at most the budget
         // (a hostile sliver of a region spanning 10⁻⁹ of the elevations asked for 5.7 million
         // rows, and tested 11 million azimuths in each of the rows it crossed: 16 s).
-        let span = ((high - low) / PI).clamp(1e-9, 1.0);
-        let rows = rows
-            .min((budget / (2.0 * span)).sqrt())
+        let span = ((high - low) / std::f64::consts::PI).clamp(1e-9, 1.0);
+        rows.min((budget / (2.0 * span)).sqrt())
             .min(budget / 2.0)
             .max(2.0)
-            .floor();
+            .floor()
+    }
+
+    /// The grid points with `rows` elevations and 2·`rows` azimuths (as
+    /// [`Self::grid_rows`] gives them) that lie inside the region (in an inside face of the
+    /// boundary-only triangulation) and at least half an elevation step from every boundary
+    /// edge, as chart positions, row by row.
+    fn grid_points(&self, rows: f64) -> Vec<DVec2> {
+        use std::f64::consts::{FRAC_PI_2, PI};
+        let (low, high) = self.elevation_range();
         let step = PI / rows;
         let clearance = 0.5 * step;
         let near = SegmentGrid::new(&self.segments, clearance);
