@@ -147,9 +147,8 @@ impl RegionSurface {
 
     /// [`RegionSurface::point`] and the height it was moved by.
     pub fn point_and_height(&self, q: DVec2) -> (DVec3, f64) {
-        let x = self.on_ellipsoid(q);
-        let h = self.blend.height(x);
-        (self.raise(x, h), h)
+        let (point, height, _) = self.point_height_and_clearance(q, |_| f64::NEG_INFINITY);
+        (point, height)
     }
 
     /// [`RegionSurface::point_and_height`], given a lower bound on the distance from the
@@ -752,7 +751,7 @@ mod tests {
             let (h, clearance) = b.height_and_clearance(x, f64::NEG_INFINITY);
             assert_eq!(h.to_bits(), b.height(x).to_bits());
             assert!(clearance <= nearest_foot(x), "{x}: {clearance}");
-            // Its own bound, and one carried over from the last point.
+            // Given its own bound.
             assert_eq!(
                 b.height_and_clearance(x, clearance).0.to_bits(),
                 h.to_bits()

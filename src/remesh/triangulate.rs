@@ -130,6 +130,12 @@ impl HasPosition for Vertex {
 /// from the boundary's feet ([`RegionSurface::point_height_and_clearance`]).
 type Lifted = (DVec3, f64, f64);
 
+/// A lower bound on the distance from the ellipsoid point `x` to the boundary's feet, from a
+/// lifted point's own bound: its foot lies its height from it (triangle inequality).
+fn carried_clearance((point, height, clearance): Lifted, x: DVec3) -> f64 {
+    clearance - height.abs() - point.distance(x)
+}
+
 /// The face data says whether the face lies inside the region.
 type Cdt = ConstrainedDelaunayTriangulation<Vertex, (), (), bool>;
 
@@ -749,7 +755,7 @@ impl AdaptiveTriangulation {
             let point = self.inner.surface.point_height_and_clearance(plane, |x| {
                 corners
                     .iter()
-                    .map(|c| c.clearance - c.height.abs() - c.point.distance(x))
+                    .map(|c| carried_clearance((c.point, c.height, c.clearance), x))
                     .fold(f64::NEG_INFINITY, f64::max)
             });
             // A face that is not turned is not split into one that is and cannot be split in
@@ -773,8 +779,6 @@ impl AdaptiveTriangulation {
                 if let Some(version) = self.versions.get_mut(face.index()) {
                     *version = version.wrapping_add(1);
                 }
-            }
-            for &face in &star {
                 self.push_face(face);
             }
             self.inner.star = star;
@@ -1115,22 +1119,17 @@ pub fn triangulate_parametric(
             .filter_map(|k| points.get((k as f64 * stride) as usize).copied())
             .collect();
     }
-    // Lifted only now, for the points kept, in grid order: a point's clearance from the
-    // boundary's feet, less the distance from the point before, bounds the next one's, so
-    // the blend is searched only near the boundary (the same heights: see
-    // OffsetBlend::height_and_clearance).
-    let mut previous: Option<(DVec3, f64)> = None;
+    // Lifted only now, for the points kept, in grid order, each with the clearance the point
+    // before carries to it: the blend is searched only near the boundary (the same heights:
+    // see OffsetBlend::height_and_clearance).
+    let mut previous: Option<Lifted> = None;
     let points: Vec<(DVec2, Lifted)> = points
         .into_iter()
         .map(|plane| {
-            let mut foot = DVec3::NAN;
             let lifted = inner.surface.point_height_and_clearance(plane, |x| {
-                foot = x;
-                previous.map_or(f64::NEG_INFINITY, |(p, clearance)| {
-                    clearance - p.distance(x)
-                })
+                previous.map_or(f64::NEG_INFINITY, |p| carried_clearance(p, x))
             });
-            previous = Some((foot, lifted.2));
+            previous = Some(lifted);
             (plane, lifted)
         })
         .collect();
