@@ -1209,6 +1209,19 @@ impl RegionCdt {
         let columns = (2.0 * rows) as usize;
         let first = ((low + FRAC_PI_2) / step - 0.5).floor().max(0.0) as usize;
         let last = (((high + FRAC_PI_2) / step - 0.5).ceil().max(0.0) as usize).min(rows as usize);
+        // The same azimuths in every row.
+        let azimuths: Vec<(f64, f64)> = (0..columns)
+            .map(|j| ((j as f64 + 0.5) * step).sin_cos())
+            .collect();
+        // An inside face lies within its corners' box: a grid point outside it is in none,
+        // and is not located (most of a row lies outside the region).
+        let (mut box_low, mut box_high) = (DVec2::INFINITY, DVec2::NEG_INFINITY);
+        for face in self.cdt.inner_faces().filter(|f| *f.data()) {
+            for v in face.vertices() {
+                box_low = box_low.min(v.data().plane());
+                box_high = box_high.max(v.data().plane());
+            }
+        }
 
         let mut points = Vec::new();
         let mut hint: Option<FixedVertexHandle> = None;
@@ -1220,12 +1233,13 @@ impl RegionCdt {
             let (sin_el, cos_el) = elevation.sin_cos();
             hint = row_start.or(hint);
             row_start = None;
-            for j in 0..columns {
-                let azimuth = (j as f64 + 0.5) * step;
-                let (sin_az, cos_az) = azimuth.sin_cos();
+            for &(sin_az, cos_az) in &azimuths {
                 let u = DVec3::new(cos_el * cos_az, cos_el * sin_az, sin_el);
                 let plane = self.surface.chart.sphere_to_plane(u);
-                if !is_valid_plane_point(plane) {
+                if !is_valid_plane_point(plane)
+                    || plane.cmplt(box_low).any()
+                    || plane.cmpgt(box_high).any()
+                {
                     continue;
                 }
                 let at = match hint {
@@ -1490,6 +1504,63 @@ mod tests {
                 .iter()
                 .any(|&[a, b]| distance_to_segment_3d(u, a, b) < clearance);
             assert_eq!(grid.is_near(u), brute);
+        }
+    }
+
+    #[test]
+    fn grid_points_are_every_grid_point_inside_and_clear() {
+        // The elevation band and the box that spare grid_points most locations must not
+        // lose a point: it keeps, in order, exactly the grid points that an unhinted locate
+        // puts in an inside face at least half a step from the boundary. A ring round the
+        // chart's south pole, and a square off to one side of a tilted pole's chart.
+        use std::f64::consts::{FRAC_PI_2, PI};
+        let e = sphere(Sign::Positive);
+        let (ring_chart, ring, ring_loops) = square_with_hole(&e);
+        let tilted = RegionChart::with_pole(&e, DVec3::new(0.3, -0.2, 1.0));
+        let square: Vec<DVec3> = [(0.7, 1.9), (1.9, 1.9), (2.0, 0.7), (0.8, 0.6)]
+            .map(|(x, y)| tilted.from_plane(DVec2::new(x, y)))
+            .to_vec();
+        let cases = [
+            (ring_chart, ring, ring_loops),
+            (tilted, square, vec![vec![0, 1, 2, 3]]),
+        ];
+        for (chart, boundary, loops) in &cases {
+            let input = RegionInput {
+                region: 0,
+                surface: &RegionSurface::new(chart.clone()),
+                boundary,
+                loops,
+            };
+            let cdt = RegionCdt::new(&input).unwrap();
+            for rows in [20.0, 40.0, 101.0] {
+                let step = PI / rows;
+                let near = SegmentGrid::new(&cdt.segments, 0.5 * step);
+                let mut expected = Vec::new();
+                for i in 0..rows as usize {
+                    let elevation = -FRAC_PI_2 + (i as f64 + 0.5) * step;
+                    for j in 0..2 * rows as usize {
+                        let azimuth = (j as f64 + 0.5) * step;
+                        let u = DVec3::new(
+                            elevation.cos() * azimuth.cos(),
+                            elevation.cos() * azimuth.sin(),
+                            elevation.sin(),
+                        );
+                        let plane = cdt.surface.chart.sphere_to_plane(u);
+                        if !is_valid_plane_point(plane) {
+                            continue;
+                        }
+                        if let spade::PositionInTriangulation::OnFace(f) =
+                            cdt.cdt.locate(to_point(plane))
+                        {
+                            if *cdt.cdt.face(f).data() && !near.is_near(u) {
+                                expected.push(plane);
+                            }
+                        }
+                    }
+                }
+                assert!(expected.len() > 4, "{rows} rows: {}", expected.len());
+                assert_eq!(cdt.grid_points(rows), expected, "{rows} rows");
+            }
         }
     }
 
