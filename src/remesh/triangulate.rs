@@ -35,6 +35,7 @@ use super::chart::RegionChart;
 use super::surface::RegionSurface;
 use super::RemeshError;
 use crate::ellipsoid::NormalSide;
+use crate::rng::SplitMix64;
 use glam::{DVec2, DVec3};
 use spade::handles::{FixedFaceHandle, FixedVertexHandle, InnerTag};
 use spade::{
@@ -1078,7 +1079,8 @@ fn distance_to_segment(p: DVec2, a: DVec2, b: DVec2) -> f64 {
 /// The parametric scheme (section 5.2): a regular azimuth/elevation grid on the unit sphere
 /// in the ellipsoid's own frame (its local axes, so the grid follows the ellipsoid's
 /// parameterisation), the grid points inside the region and at least half a grid step (on
-/// the unit sphere) from its boundary inserted, the inside faces returned.
+/// the unit sphere) from its boundary inserted (each nudged by a billionth:
+/// [`nudge_grid_point`]), the inside faces returned.
 ///
 /// `interior_vertices` is a target, not exact: the grid is sized from the region's share of
 /// the sphere (the spherical area of its boundary-only triangulation), then resized once from
@@ -1148,6 +1150,24 @@ pub fn triangulate_parametric(
         }
     }
     Ok(inner.finish())
+}
+
+/// Relative size of the nudge [`nudge_grid_point`] gives each grid point in the chart.
+const GRID_NUDGE: f64 = 1e-9;
+
+/// Grid point (`row`, `column`)'s chart position `plane`, scaled by 1 ± [`GRID_NUDGE`] (a
+/// fixed pseudo-random factor per point). A row of the grid projects to a circle, and so do
+/// the four corners of each of its cells (an isosceles trapezoid on the sphere is cyclic, and
+/// stereographic projection keeps circles): spade's incircle test, asked about four points
+/// on one circle, falls back to exact arithmetic, which cost a third of the parametric
+/// scheme's time. Nudged far below any tolerance, no four points share a circle and the
+/// quick test decides. Measured (callgrind, whole decodes at 20 000 vertices): hand K = 18
+/// 2 674 -> 1 963 M instructions, teddy K = 8 2 363 -> 1 338 M, bunny K = 8 4 306 -> 2 329 M;
+/// on the 16 shared meshes' files at K = 24, at 3 000 and 20 000 vertices, the same files
+/// clean and RMS errors summed 10.747 -> 10.750 % of the diagonal.
+fn nudge_grid_point(plane: DVec2, row: usize, column: usize) -> DVec2 {
+    let mut rng = SplitMix64::new(((row as u64) << 32) ^ column as u64);
+    plane * (1.0 + GRID_NUDGE * rng.range_f64(-1.0, 1.0))
 }
 
 /// Largest number of grid points [`triangulate_parametric`] tests, at least.
@@ -1233,9 +1253,9 @@ impl RegionCdt {
             let (sin_el, cos_el) = elevation.sin_cos();
             hint = row_start.or(hint);
             row_start = None;
-            for &(sin_az, cos_az) in &azimuths {
+            for (j, &(sin_az, cos_az)) in azimuths.iter().enumerate() {
                 let u = DVec3::new(cos_el * cos_az, cos_el * sin_az, sin_el);
-                let plane = self.surface.chart.sphere_to_plane(u);
+                let plane = nudge_grid_point(self.surface.chart.sphere_to_plane(u), i, j);
                 if !is_valid_plane_point(plane)
                     || plane.cmplt(box_low).any()
                     || plane.cmpgt(box_high).any()
@@ -1510,8 +1530,8 @@ mod tests {
     #[test]
     fn grid_points_are_every_grid_point_inside_and_clear() {
         // The elevation band and the box that spare grid_points most locations must not
-        // lose a point: it keeps, in order, exactly the grid points that an unhinted locate
-        // puts in an inside face at least half a step from the boundary. A ring round the
+        // lose a point: it keeps, in order, exactly the (nudged) grid points that an unhinted
+        // locate puts in an inside face at least half a step from the boundary. A ring round the
         // chart's south pole, and a square off to one side of a tilted pole's chart.
         use std::f64::consts::{FRAC_PI_2, PI};
         let e = sphere(Sign::Positive);
@@ -1545,7 +1565,7 @@ mod tests {
                             elevation.cos() * azimuth.sin(),
                             elevation.sin(),
                         );
-                        let plane = cdt.surface.chart.sphere_to_plane(u);
+                        let plane = nudge_grid_point(cdt.surface.chart.sphere_to_plane(u), i, j);
                         if !is_valid_plane_point(plane) {
                             continue;
                         }
