@@ -1079,8 +1079,8 @@ fn distance_to_segment(p: DVec2, a: DVec2, b: DVec2) -> f64 {
 /// The parametric scheme (section 5.2): a regular azimuth/elevation grid on the unit sphere
 /// in the ellipsoid's own frame (its local axes, so the grid follows the ellipsoid's
 /// parameterisation), the grid points inside the region and at least half a grid step (on
-/// the unit sphere) from its boundary inserted (each nudged by a billionth:
-/// [`nudge_grid_point`]), the inside faces returned.
+/// the unit sphere) from its boundary inserted (each nudged by a billionth of its chart
+/// position, so that no four share a circle), the inside faces returned.
 ///
 /// `interior_vertices` is a target, not exact: the grid is sized from the region's share of
 /// the sphere (the spherical area of its boundary-only triangulation), then resized once from
