@@ -489,6 +489,29 @@ fn parametric_grid_is_a_valid_mesh_near_the_requested_size() {
     }
 }
 
+/// A cap of a flattened ellipsoid bounded by a few points far apart: near a chord that cuts
+/// deep under the surface, the grid made faces that stand across it, turned over (1–10 per
+/// mesh here before `RegionCdt::drop_turned_corners`). Every face now faces out (strict),
+/// and the vertex count stays near the request.
+#[test]
+fn parametric_grid_turns_no_face_along_deep_chords() {
+    for sign in [Sign::Positive, Sign::Negative] {
+        for radii in [DVec3::new(3.0, 0.5, 1.0), DVec3::new(0.3, 2.0, 1.0)] {
+            let e = Ellipsoid {
+                radii,
+                ..ellipsoid(sign)
+            };
+            for theta in [0.8, 1.2, 1.5] {
+                for points in [3, 5, 7] {
+                    for n in [400, 3000] {
+                        parametric(&cap(&e, theta, points), n, 1, true);
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// The paper's Figure 8 claim: at an equal vertex count, iterative vertex addition has a
 /// lower RMS radial error than the parametric grid. Returns (adaptive, parametric) RMS.
 fn compare(region: &Region, n: usize) -> (f64, f64) {
