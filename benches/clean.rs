@@ -23,11 +23,14 @@
 //! [`BUDGETS`] vertices without subdivision (every vertex placed by vertex addition), and
 //! besides the clean decodes, those whose first meshing attempt is clean (one meshing): how
 //! files fare at densities the encoder's check did not look at.
+//!
+//! With `--parametric`, every decode uses the parametric scheme (section 5.2) instead of
+//! vertex addition.
 
 use ellip::encode::{encode_mesh, EncodeSettings};
 use ellip::format::{decode, Limits};
 use ellip::import::{read_mesh, ImportOptions, MeshFormat};
-use ellip::remesh::{remesh, RemeshOptions};
+use ellip::remesh::{remesh, RemeshOptions, Scheme};
 use ellip::segment::{default_region_count, RegionCount, SegmentOptions, DEFAULT_REGIONS};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -57,6 +60,11 @@ fn main() {
     let large = args.iter().any(|a| a == "--large");
     let verify = !args.iter().any(|a| a == "--no-verify");
     let budgets = args.iter().any(|a| a == "--budgets");
+    let scheme = if args.iter().any(|a| a == "--parametric") {
+        Scheme::Parametric
+    } else {
+        Scheme::Adaptive
+    };
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let shared = root.join("../shared/meshes");
     let dir = args.iter().position(|a| a == "--dir").map(|i| {
@@ -104,13 +112,18 @@ fn main() {
                 let options = RemeshOptions {
                     vertices: Some(b),
                     subdivision: false,
+                    scheme,
                     ..RemeshOptions::default()
                 };
                 (b.to_string(), options)
             })
             .collect()
     } else {
-        vec![("default".to_string(), RemeshOptions::default())]
+        let options = RemeshOptions {
+            scheme,
+            ..RemeshOptions::default()
+        };
+        vec![("default".to_string(), options)]
     };
     println!("| file | K | regions | bytes | encode s | vertices | decode s | meshings | result |");
     println!("|---|---:|---:|---:|---:|---:|---:|---:|---|");
