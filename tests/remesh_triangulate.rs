@@ -344,7 +344,7 @@ fn insertion_stops_on_tolerance() {
 /// The error a region input produces with both schemes (which must agree).
 fn region_error(region: &Region) -> &'static str {
     let adaptive = AdaptiveTriangulation::new(&region.input(), 0.0).err();
-    let parametric = triangulate_parametric(&region.input(), 100).err();
+    let parametric = triangulate_parametric(&region.input(), 100, 0.0).err();
     match (adaptive, parametric) {
         (Some(RemeshError::Region { what, .. }), Some(RemeshError::Region { what: w2, .. })) => {
             assert_eq!(what, w2);
@@ -451,11 +451,15 @@ fn hostile_boundaries_are_typed_errors() {
         AdaptiveTriangulation::new(&good.input(), f64::NAN),
         Err(RemeshError::InvalidOption { .. })
     ));
+    assert!(matches!(
+        triangulate_parametric(&good.input(), 100, f64::NAN),
+        Err(RemeshError::InvalidOption { .. })
+    ));
 }
 
 /// Parametric triangulation: checks the mesh and that it has within ±35% of `n` vertices.
 fn parametric(region: &Region, n: usize, euler: i64, strict: bool) -> RegionMesh {
-    let mesh = triangulate_parametric(&region.input(), n).expect("triangulates");
+    let mesh = triangulate_parametric(&region.input(), n, 0.0).expect("triangulates");
     assert_eq!(check_mesh_with(region, &mesh, strict), euler);
     let got = mesh.interior.len() as f64;
     assert!(
@@ -512,10 +516,30 @@ fn parametric_grid_turns_no_face_along_deep_chords() {
     }
 }
 
+/// A region given no grid point whose boundary-only faces are turned: a cap larger than a
+/// hemisphere, asked for no interior vertex, is the flat disc of its boundary, which faces
+/// away from the ellipsoid's normal at its centroid. The turned faces are split as vertex
+/// addition splits them, with at most 64 vertices, until every face faces out (strict).
+#[test]
+fn parametric_mends_the_faces_it_leaves_turned() {
+    for sign in [Sign::Positive, Sign::Negative] {
+        let e = ellipsoid(sign);
+        let region = cap(&e, 2.3, 24);
+        let mesh = triangulate_parametric(&region.input(), 0, 0.0).expect("triangulates");
+        assert!(
+            (1..=64).contains(&mesh.interior.len()),
+            "{} vertices added",
+            mesh.interior.len()
+        );
+        assert_eq!(mesh.turned, 0);
+        assert_eq!(check_mesh(&region, &mesh), 1);
+    }
+}
+
 /// The paper's Figure 8 claim: at an equal vertex count, iterative vertex addition has a
 /// lower RMS radial error than the parametric grid. Returns (adaptive, parametric) RMS.
 fn compare(region: &Region, n: usize) -> (f64, f64) {
-    let grid = triangulate_parametric(&region.input(), n).expect("parametric");
+    let grid = triangulate_parametric(&region.input(), n, 0.0).expect("parametric");
     let count = grid.interior.len();
     let adapted = adaptive(region, count);
     let (_, rms_grid) = sampled_error(region, &grid);
@@ -668,7 +692,7 @@ fn measure_insertion_rate() {
         mesh.triangles.len() as f64 / total.as_secs_f64()
     );
     let start = std::time::Instant::now();
-    let grid = triangulate_parametric(&region.input(), n).unwrap();
+    let grid = triangulate_parametric(&region.input(), n, 0.0).unwrap();
     println!(
         "parametric: {} vertices, {} triangles in {:.1} ms",
         grid.interior.len(),

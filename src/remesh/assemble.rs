@@ -667,7 +667,9 @@ impl Plan<'_> {
             Scheme::Adaptive => {
                 triangulate_adaptive(pieces, positions.len(), budget, tolerance, spacing)?
             }
-            Scheme::Parametric => triangulate_by_area(pieces, positions.len(), budget)?,
+            Scheme::Parametric => {
+                triangulate_by_area(pieces, positions.len(), budget, min_spacing(spacing))?
+            }
         };
         join(rep, options.max_vertices, positions, pieces, meshes)
     }
@@ -1652,6 +1654,7 @@ fn triangulate_by_area(
     pieces: &[Piece],
     boundary_vertices: usize,
     budget: usize,
+    min_spacing: f64,
 ) -> Result<Vec<RegionMesh>, RemeshError> {
     let interior = budget.saturating_sub(boundary_vertices);
     let total: f64 = pieces.iter().map(|p| p.area).sum();
@@ -1690,7 +1693,7 @@ fn triangulate_by_area(
         let meshes = pieces
             .iter()
             .zip(&requests)
-            .map(|(p, &n)| triangulate_parametric(&p.input(), n))
+            .map(|(p, &n)| triangulate_parametric(&p.input(), n, min_spacing))
             .collect::<Result<Vec<_>, _>>()?;
         let made: usize = meshes.iter().map(|m| m.interior.len()).sum();
         let miss = made.abs_diff(interior);

@@ -9,7 +9,7 @@
 //!     .insert_worst() -> bool         // false when no candidate is left
 //!     .added() -> usize               // interior vertices inserted so far
 //!     .finish() -> RegionMesh
-//! triangulate_parametric(&RegionInput, interior_vertices) -> Result<RegionMesh, RemeshError>
+//! triangulate_parametric(&RegionInput, interior_vertices, min_spacing) -> Result<RegionMesh, RemeshError>
 //! ```
 //!
 //! Both start from the same boundary-only triangulation: the boundary vertices mapped to the
@@ -187,6 +187,7 @@ fn is_valid_plane_point(q: DVec2) -> bool {
 
 /// A region's constrained Delaunay triangulation in its chart, its faces marked inside or
 /// outside the region. Shared by both schemes.
+#[derive(Clone)]
 struct RegionCdt {
     surface: RegionSurface,
     cdt: Cdt,
@@ -710,6 +711,8 @@ pub struct AdaptiveTriangulation {
     /// Whether a face was split into a turned one only because its centroid lay far from
     /// the surface ([`Self::made_curved_splits`]).
     curved_splits: bool,
+    /// Whether only faces turned against the ellipsoid are candidates ([`Self::mend`]).
+    turned_only: bool,
 }
 
 impl AdaptiveTriangulation {
@@ -736,9 +739,34 @@ impl AdaptiveTriangulation {
             turned: Vec::new(),
             by_length: false,
             curved_splits: false,
+            turned_only: false,
         };
         this.push_inside_faces();
         Ok(this)
+    }
+
+    /// `inner`'s triangles, its faces turned against the ellipsoid split first as vertex
+    /// addition splits them (whatever that gives, and so on with the turned faces made),
+    /// until none is left that may be split under `min_spacing` or `max_insertions` vertices
+    /// are added.
+    fn mend(inner: RegionCdt, min_spacing: f64, max_insertions: usize) -> RegionMesh {
+        let mut this = AdaptiveTriangulation {
+            inner,
+            heap: BinaryHeap::new(),
+            versions: Vec::new(),
+            min_spacing,
+            turned: Vec::new(),
+            by_length: false,
+            curved_splits: false,
+            turned_only: true,
+        };
+        this.push_inside_faces();
+        for _ in 0..max_insertions {
+            if !this.insert_worst() {
+                break;
+            }
+        }
+        this.finish()
     }
 
     /// The distance (model units) of the worst face's flat centroid from the surface among
@@ -969,6 +997,8 @@ impl AdaptiveTriangulation {
         let turned = self.inner.is_turned([pa, pb, pc]);
         if turned {
             self.turned.push(vertices.map(|v| v.fix()));
+        } else if self.turned_only {
+            return;
         }
         let Some((plane, point)) = self.split_point(corners) else {
             return;
@@ -1090,7 +1120,11 @@ fn distance_to_segment(p: DVec2, a: DVec2, b: DVec2) -> f64 {
 /// the unit sphere) from its boundary inserted (each nudged by a billionth of its chart
 /// position, so that no four share a circle), the grid points at a corner of a face turned
 /// against the ellipsoid dropped again (`RegionCdt::drop_turned_corners`), the inside faces
-/// returned.
+/// returned. Where a turned face is left (one between boundary points only: a region too
+/// small for the grid, its boundary far off its ellipsoid) and diagonal swaps leave one too,
+/// the turned faces are split as vertex addition splits them, its minimum spacing
+/// `min_spacing` (model units), adding at most an eighth of `interior_vertices` or 64
+/// vertices, if that leaves fewer.
 ///
 /// `interior_vertices` is a target, not exact: the grid is sized from the region's share of
 /// the sphere (the spherical area of its boundary-only triangulation), then resized once from
@@ -1098,69 +1132,94 @@ fn distance_to_segment(p: DVec2, a: DVec2, b: DVec2) -> f64 {
 /// of the requested size is kept. Very thin regions get a coarser grid: at most
 /// `max(16·interior_vertices, 2¹⁶)` grid points are tested.
 ///
-/// Errors: as [`AdaptiveTriangulation::new`].
+/// Errors: as [`AdaptiveTriangulation::new`] (a negative or non-finite `min_spacing` too).
 pub fn triangulate_parametric(
     input: &RegionInput,
     interior_vertices: usize,
+    min_spacing: f64,
 ) -> Result<RegionMesh, RemeshError> {
+    if !(min_spacing >= 0.0 && min_spacing.is_finite()) {
+        return Err(RemeshError::InvalidOption {
+            what: "min_spacing",
+            value: min_spacing.to_string(),
+        });
+    }
     let mut inner = RegionCdt::new(input)?;
-    if interior_vertices == 0 {
+    if interior_vertices > 0 {
+        inner.insert_grid(interior_vertices);
+    }
+    if !inner.drop_turned_corners() {
         return Ok(inner.finish());
     }
-    let target = interior_vertices as f64;
-    let share = inner.sphere_share().clamp(1e-12, 1.0);
-    let asked = (target / (2.0 * share)).sqrt().ceil();
-    let rows = inner.grid_rows(asked, interior_vertices);
-    let mut points = inner.grid_points(rows);
-    if !points.is_empty() {
-        let ratio = target / points.len() as f64;
-        if !(0.9..=1.1).contains(&ratio) {
-            // The same rows (both capped, as for a region whose share is far
-            // underestimated) give the same grid: it is not made again.
-            let resized = inner.grid_rows((asked * ratio.sqrt()).ceil(), interior_vertices);
-            if resized != rows {
-                points = inner.grid_points(resized);
+    // Diagonal swaps (RegionCdt::finish) mend some turned faces that splits would not: the
+    // one with fewer turned faces is kept, the grid alone on a tie.
+    let most = (interior_vertices / 8).max(MIN_MENDING_VERTICES);
+    let split = AdaptiveTriangulation::mend(inner.clone(), min_spacing, most);
+    let swapped = inner.finish();
+    Ok(if split.turned < swapped.turned {
+        split
+    } else {
+        swapped
+    })
+}
+
+impl RegionCdt {
+    /// Inserts the grid points of [`triangulate_parametric`] for a target of
+    /// `interior_vertices` (at least 1).
+    fn insert_grid(&mut self, interior_vertices: usize) {
+        let target = interior_vertices as f64;
+        let share = self.sphere_share().clamp(1e-12, 1.0);
+        let asked = (target / (2.0 * share)).sqrt().ceil();
+        let rows = self.grid_rows(asked, interior_vertices);
+        let mut points = self.grid_points(rows);
+        if !points.is_empty() {
+            let ratio = target / points.len() as f64;
+            if !(0.9..=1.1).contains(&ratio) {
+                // The same rows (both capped, as for a region whose share is far
+                // underestimated) give the same grid: it is not made again.
+                let resized = self.grid_rows((asked * ratio.sqrt()).ceil(), interior_vertices);
+                if resized != rows {
+                    points = self.grid_points(resized);
+                }
+            }
+        }
+        // A share estimate far off (hostile or degenerate boundaries) can still overshoot: keep
+        // an evenly spread subset, so the cost stays proportional to the request.
+        if points.len() > 2 * interior_vertices {
+            let stride = points.len() as f64 / interior_vertices as f64;
+            points = (0..interior_vertices)
+                .filter_map(|k| points.get((k as f64 * stride) as usize).copied())
+                .collect();
+        }
+        // Lifted only now, for the points kept, in grid order, each with the clearance the point
+        // before carries to it: the blend is searched only near the boundary (the same heights:
+        // see OffsetBlend::height_and_clearance).
+        let mut previous: Option<Lifted> = None;
+        let points: Vec<(DVec2, Lifted)> = points
+            .into_iter()
+            .map(|plane| {
+                let lifted = self.surface.point_height_and_clearance(plane, |x| {
+                    previous.map_or(f64::NEG_INFINITY, |p| carried_clearance(p, x))
+                });
+                previous = Some(lifted);
+                (plane, lifted)
+            })
+            .collect();
+        let mut hint = None;
+        for (plane, point) in points {
+            let at = match hint {
+                Some(h) => self.cdt.locate_with_hint(to_point(plane), h),
+                None => self.cdt.locate(to_point(plane)),
+            };
+            let spade::PositionInTriangulation::OnFace(face) = at else {
+                continue;
+            };
+            let corner = self.cdt.face(face).vertices()[0].fix();
+            if let Some(v) = self.insert_interior(plane, point, hint.unwrap_or(corner)) {
+                hint = Some(v);
             }
         }
     }
-    // A share estimate far off (hostile or degenerate boundaries) can still overshoot: keep
-    // an evenly spread subset, so the cost stays proportional to the request.
-    if points.len() > 2 * interior_vertices {
-        let stride = points.len() as f64 / interior_vertices as f64;
-        points = (0..interior_vertices)
-            .filter_map(|k| points.get((k as f64 * stride) as usize).copied())
-            .collect();
-    }
-    // Lifted only now, for the points kept, in grid order, each with the clearance the point
-    // before carries to it: the blend is searched only near the boundary (the same heights:
-    // see OffsetBlend::height_and_clearance).
-    let mut previous: Option<Lifted> = None;
-    let points: Vec<(DVec2, Lifted)> = points
-        .into_iter()
-        .map(|plane| {
-            let lifted = inner.surface.point_height_and_clearance(plane, |x| {
-                previous.map_or(f64::NEG_INFINITY, |p| carried_clearance(p, x))
-            });
-            previous = Some(lifted);
-            (plane, lifted)
-        })
-        .collect();
-    let mut hint = None;
-    for (plane, point) in points {
-        let at = match hint {
-            Some(h) => inner.cdt.locate_with_hint(to_point(plane), h),
-            None => inner.cdt.locate(to_point(plane)),
-        };
-        let spade::PositionInTriangulation::OnFace(face) = at else {
-            continue;
-        };
-        let corner = inner.cdt.face(face).vertices()[0].fix();
-        if let Some(v) = inner.insert_interior(plane, point, hint.unwrap_or(corner)) {
-            hint = Some(v);
-        }
-    }
-    inner.drop_turned_corners();
-    Ok(inner.finish())
 }
 
 /// Relative size of the nudge [`nudge_grid_point`] gives each grid point in the chart.
@@ -1331,10 +1390,15 @@ impl RegionCdt {
 /// its ellipsoid's smallest radius).
 const MAX_DROP_ROUNDS: usize = 64;
 
+/// The fewest vertices [`triangulate_parametric`] may add to mend the faces left turned
+/// against the ellipsoid (an eighth of the request if more).
+const MIN_MENDING_VERTICES: usize = 64;
+
 impl RegionCdt {
     /// Removes the grid points that are corners of faces turned against the ellipsoid
     /// ([`RegionCdt::is_turned`]), round after round until none is left (at most
-    /// [`MAX_DROP_ROUNDS`]); then numbers the interior vertices left in order.
+    /// [`MAX_DROP_ROUNDS`]); then numbers the interior vertices left in order. Whether a
+    /// turned face is left (one with no grid point, or after the last round).
     ///
     /// The grid does not know the boundary's shape: near a boundary chord that cuts deep
     /// under a curved ellipsoid (its stored points far apart), a face from the chord to a
@@ -1345,13 +1409,16 @@ impl RegionCdt {
     /// 16 shared meshes' files at K = 24 and hand's at K = 18, at 3 000 and 20 000 vertices,
     /// 21 of 34 parametric decodes were clean before (1–18 flipped triangles left in the
     /// others after every meshing attempt), all 34 with this.
-    fn drop_turned_corners(&mut self) {
+    fn drop_turned_corners(&mut self) -> bool {
         let mut dropped = false;
-        for _ in 0..MAX_DROP_ROUNDS {
+        let mut turned = false;
+        for round in 0..=MAX_DROP_ROUNDS {
             let mut drop: Vec<Point2<f64>> = Vec::new();
+            turned = false;
             for face in self.cdt.inner_faces().filter(|f| *f.data()) {
                 let corners = face.vertices();
                 if self.is_turned(corners.each_ref().map(|v| v.data().point)) {
+                    turned = true;
                     drop.extend(
                         corners
                             .iter()
@@ -1360,7 +1427,7 @@ impl RegionCdt {
                     );
                 }
             }
-            if drop.is_empty() {
+            if drop.is_empty() || round == MAX_DROP_ROUNDS {
                 break;
             }
             // Each removal renumbers handles: the points are found by position.
@@ -1379,6 +1446,7 @@ impl RegionCdt {
         if dropped {
             self.renumber_interior();
         }
+        turned
     }
 
     /// Numbers the interior vertices left in the triangulation 0, 1, … in the order they
