@@ -1205,17 +1205,23 @@ impl RegionCdt {
                 (plane, lifted)
             })
             .collect();
+        // Each point is inserted next to the one before (spade locates it from there); the
+        // first is located from a corner of its face. grid_points found every point inside
+        // the region and clear of its boundary, so none lies on a boundary edge.
         let mut hint = None;
         for (plane, point) in points {
-            let at = match hint {
-                Some(h) => self.cdt.locate_with_hint(to_point(plane), h),
-                None => self.cdt.locate(to_point(plane)),
+            let hint_here = match hint {
+                Some(h) => h,
+                None => {
+                    let spade::PositionInTriangulation::OnFace(face) =
+                        self.cdt.locate(to_point(plane))
+                    else {
+                        continue;
+                    };
+                    self.cdt.face(face).vertices()[0].fix()
+                }
             };
-            let spade::PositionInTriangulation::OnFace(face) = at else {
-                continue;
-            };
-            let corner = self.cdt.face(face).vertices()[0].fix();
-            if let Some(v) = self.insert_interior(plane, point, hint.unwrap_or(corner)) {
+            if let Some(v) = self.insert_interior(plane, point, hint_here) {
                 hint = Some(v);
             }
         }
