@@ -725,31 +725,13 @@ impl AdaptiveTriangulation {
     /// position, crossing loops, a boundary point on another boundary edge, an edge used
     /// twice, a boundary enclosing no area, a region on the wrong side of its loops.
     pub fn new(input: &RegionInput, min_spacing: f64) -> Result<Self, RemeshError> {
-        if !(min_spacing >= 0.0 && min_spacing.is_finite()) {
-            return Err(RemeshError::InvalidOption {
-                what: "min_spacing",
-                value: min_spacing.to_string(),
-            });
-        }
-        let mut this = AdaptiveTriangulation {
-            inner: RegionCdt::new(input)?,
-            heap: BinaryHeap::new(),
-            versions: Vec::new(),
-            min_spacing,
-            turned: Vec::new(),
-            by_length: false,
-            curved_splits: false,
-            turned_only: false,
-        };
-        this.push_inside_faces();
-        Ok(this)
+        check_min_spacing(min_spacing)?;
+        Ok(Self::start(RegionCdt::new(input)?, min_spacing, false))
     }
 
-    /// `inner`'s triangles, its faces turned against the ellipsoid split first as vertex
-    /// addition splits them (whatever that gives, and so on with the turned faces made),
-    /// until none is left that may be split under `min_spacing` or `max_insertions` vertices
-    /// are added.
-    fn mend(inner: RegionCdt, min_spacing: f64, max_insertions: usize) -> RegionMesh {
+    /// Vertex addition on `inner` as it is, every inside face (with `turned_only`, every
+    /// face turned against the ellipsoid) a candidate.
+    fn start(inner: RegionCdt, min_spacing: f64, turned_only: bool) -> Self {
         let mut this = AdaptiveTriangulation {
             inner,
             heap: BinaryHeap::new(),
@@ -758,9 +740,18 @@ impl AdaptiveTriangulation {
             turned: Vec::new(),
             by_length: false,
             curved_splits: false,
-            turned_only: true,
+            turned_only,
         };
         this.push_inside_faces();
+        this
+    }
+
+    /// `inner`'s triangles, its faces turned against the ellipsoid split first as vertex
+    /// addition splits them (whatever that gives, and so on with the turned faces made),
+    /// until none is left that may be split under `min_spacing` or `max_insertions` vertices
+    /// are added.
+    fn mend(inner: RegionCdt, min_spacing: f64, max_insertions: usize) -> RegionMesh {
+        let mut this = Self::start(inner, min_spacing, true);
         for _ in 0..max_insertions {
             if !this.insert_worst() {
                 break;
@@ -829,7 +820,7 @@ impl AdaptiveTriangulation {
     /// face a candidate again under it: lowered, it lets refinement go on where the budget
     /// was not spent (a region whose estimated area was too large for its real size).
     pub fn set_min_spacing(&mut self, min_spacing: f64) {
-        if !(min_spacing >= 0.0 && min_spacing.is_finite()) {
+        if check_min_spacing(min_spacing).is_err() {
             return;
         }
         self.min_spacing = min_spacing;
@@ -1033,6 +1024,18 @@ impl AdaptiveTriangulation {
     }
 }
 
+/// A minimum spacing must be finite and not negative ([`RemeshError::InvalidOption`]).
+fn check_min_spacing(min_spacing: f64) -> Result<(), RemeshError> {
+    if min_spacing >= 0.0 && min_spacing.is_finite() {
+        Ok(())
+    } else {
+        Err(RemeshError::InvalidOption {
+            what: "min_spacing",
+            value: min_spacing.to_string(),
+        })
+    }
+}
+
 /// Faces up to this many minimum spacings long (eight target edge lengths: the adaptive
 /// scheme's minimum spacing is a quarter of the target) are never split into a face turned
 /// against the ellipsoid ([`AdaptiveTriangulation::judge_split`]).
@@ -1138,18 +1141,14 @@ pub fn triangulate_parametric(
     interior_vertices: usize,
     min_spacing: f64,
 ) -> Result<RegionMesh, RemeshError> {
-    if !(min_spacing >= 0.0 && min_spacing.is_finite()) {
-        return Err(RemeshError::InvalidOption {
-            what: "min_spacing",
-            value: min_spacing.to_string(),
-        });
-    }
+    check_min_spacing(min_spacing)?;
     let mut inner = RegionCdt::new(input)?;
     if interior_vertices > 0 {
         inner.insert_grid(interior_vertices);
     }
     if !inner.drop_turned_corners() {
-        return Ok(inner.finish());
+        // No face is turned (its last round looked at every one): none is looked for again.
+        return Ok(inner.finish_knowing(Some(&[])));
     }
     // Diagonal swaps (RegionCdt::finish) mend some turned faces that splits would not: the
     // one with fewer turned faces is kept, the grid alone on a tie.
