@@ -13,12 +13,12 @@
 //! The meshes come from `../shared/meshes`; without it the benchmark uses the generated blob
 //! fixtures at K = their ellipsoid count.
 
+use ellip::compare::distance_to_segment;
 use ellip::encode::{encode_mesh, EncodeSettings};
 use ellip::format::{decode, inspect, Limits};
 use ellip::import::{read_mesh, ImportOptions};
 use ellip::representation::Representation;
 use ellip::segment::{Mode, RegionCount, SegmentOptions};
-use glam::DVec3;
 use std::path::{Path, PathBuf};
 
 fn main() {
@@ -157,10 +157,4 @@ fn worst_boundary_error(exact: &Representation, decoded: &Representation) -> f64
         }
     }
     worst
-}
-
-fn distance_to_segment(p: DVec3, a: DVec3, b: DVec3) -> f64 {
-    let ab = b - a;
-    let t = ((p - a).dot(ab) / ab.length_squared().max(1e-300)).clamp(0.0, 1.0);
-    (p - (a + ab * t)).length()
 }

@@ -3,6 +3,7 @@
 
 mod common;
 
+use ellip::compare::distance_to_segment;
 use ellip::encode::{encode_mesh, EncodeSettings, AUTO_BITS};
 use ellip::format::{decode, inspect, Limits};
 use ellip::import::{read_mesh, ImportOptions};
@@ -24,12 +25,6 @@ fn settings(k: usize) -> EncodeSettings {
         },
         ..EncodeSettings::default()
     }
-}
-
-fn distance_to_segment(p: DVec3, a: DVec3, b: DVec3) -> f64 {
-    let ab = b - a;
-    let t = ((p - a).dot(ab) / ab.length_squared().max(1e-300)).clamp(0.0, 1.0);
-    (p - (a + ab * t)).length()
 }
 
 #[test]

@@ -4,6 +4,7 @@
 //! Regenerate the committed fixtures (a deliberate format change) with
 //! `ELLIP_REGENERATE_FIXTURES=1 cargo test --test format`.
 
+use ellip::compare::distance_to_segment;
 use ellip::ellipsoid::Ellipsoid;
 use ellip::format::consts::*;
 use ellip::format::container::{inflate, read_container, write_container, RawSection};
@@ -163,12 +164,6 @@ fn simplified_arcs_stay_within_tolerance_and_keep_junctions() {
     loops.simplify_arcs(10.0);
     assert_eq!(loops.arcs[0].points.len(), 3);
     assert!(loops.validate().is_ok());
-}
-
-fn distance_to_segment(p: DVec3, a: DVec3, b: DVec3) -> f64 {
-    let ab = b - a;
-    let t = ((p - a).dot(ab) / ab.length_squared().max(1e-300)).clamp(0.0, 1.0);
-    (p - (a + ab * t)).length()
 }
 
 // ---------------------------------------------------------------------------------------

@@ -3,6 +3,7 @@
 //! ellipsoids, `.ellip` bytes decoded (quantised boundary points), charts built from the
 //! decoded cycles, compared against the source mesh and its segmentation.
 
+use ellip::compare::distance_to_segment;
 use ellip::encode::{encode_mesh, EncodeSettings};
 use ellip::format::{decode, Limits};
 use ellip::import::{read_mesh, ImportOptions};
@@ -46,17 +47,6 @@ fn encode_blob(name: &str, regions: usize) -> Encoded {
         rep,
         diagonal,
     }
-}
-
-/// Distance from `p` to the segment `a`–`b`.
-fn segment_distance(p: DVec3, a: DVec3, b: DVec3) -> f64 {
-    let ab = b - a;
-    let t = if ab.length_squared() > 0.0 {
-        ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (p - (a + t * ab)).length()
 }
 
 /// Every boundary segment of every region's loops.
@@ -121,7 +111,7 @@ fn charts_contain_their_regions_faces() {
             let c = blob.mesh.face_centroid(f);
             if segments
                 .iter()
-                .any(|&(a, b)| segment_distance(c, a, b) < band)
+                .any(|&(a, b)| distance_to_segment(c, a, b) < band)
             {
                 continue;
             }

@@ -24,7 +24,7 @@ mod triangle;
 
 pub use bvh::{Bvh, Hit};
 pub use sample::{sample_surface, SurfaceSample};
-pub use triangle::{closest_point_on_segment, closest_point_on_triangle};
+pub use triangle::{closest_point_on_segment, closest_point_on_triangle, distance_to_segment};
 
 use crate::Mesh;
 use glam::DVec3;

@@ -69,6 +69,11 @@ pub fn closest_point_on_segment(p: DVec3, a: DVec3, b: DVec3) -> DVec3 {
     a + ab * t
 }
 
+/// Distance from `p` to the segment `ab` (to `a` when the segment is a point).
+pub fn distance_to_segment(p: DVec3, a: DVec3, b: DVec3) -> f64 {
+    closest_point_on_segment(p, a, b).distance(p)
+}
+
 /// The closest point of the three edges; ties go to the first edge (ab, bc, ca).
 fn closest_point_on_edges(p: DVec3, [a, b, c]: [DVec3; 3]) -> DVec3 {
     let mut best = closest_point_on_segment(p, a, b);

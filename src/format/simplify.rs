@@ -6,6 +6,7 @@
 //! is applied to every arc before quantisation, so the pool holds only the points needed to
 //! keep each boundary within `tolerance` of its original polyline.
 
+use crate::compare::distance_to_segment;
 use glam::DVec3;
 
 /// Suggested simplification tolerance as a fraction of the mesh's bounding-box diagonal:
@@ -13,18 +14,6 @@ use glam::DVec3;
 /// diagonal of the points' box, so a boundary point ends within about 1.1·10⁻³ of the
 /// diagonal of where it was (spec appendix B measures sizes for this pair).
 pub const DEFAULT_RELATIVE_TOLERANCE: f64 = 1e-3;
-
-/// Distance from `p` to the segment `a`–`b`.
-fn distance_to_segment(p: DVec3, a: DVec3, b: DVec3) -> f64 {
-    let ab = b - a;
-    let len2 = ab.length_squared();
-    let t = if len2 > 0.0 {
-        ((p - a).dot(ab) / len2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (p - (a + ab * t)).length()
-}
 
 /// Marks the points of `points[lo..=hi]` that Douglas–Peucker keeps, with `lo` and `hi`
 /// already kept. Iterative, so long arcs cannot overflow the stack.

@@ -1579,16 +1579,9 @@ impl<'a> SegmentGrid<'a> {
             .iter()
             .take_while(|&&(k, _)| k == key)
             .any(|&(_, i)| {
-                self.segments.get(i as usize).is_some_and(|&[a, b]| {
-                    let ab = b - a;
-                    let len2 = ab.length_squared();
-                    let t = if len2 > 0.0 {
-                        ((u - a).dot(ab) / len2).clamp(0.0, 1.0)
-                    } else {
-                        0.0
-                    };
-                    u.distance(a + ab * t) < clearance
-                })
+                self.segments
+                    .get(i as usize)
+                    .is_some_and(|&[a, b]| crate::compare::distance_to_segment(u, a, b) < clearance)
             })
     }
 }
@@ -1704,7 +1697,7 @@ mod tests {
             let u = rng.unit_vector();
             let brute = segments
                 .iter()
-                .any(|&[a, b]| distance_to_segment_3d(u, a, b) < clearance);
+                .any(|&[a, b]| crate::compare::distance_to_segment(u, a, b) < clearance);
             assert_eq!(grid.is_near(u), brute);
         }
     }
@@ -1764,11 +1757,6 @@ mod tests {
                 assert_eq!(cdt.grid_points(rows), expected, "{rows} rows");
             }
         }
-    }
-
-    fn distance_to_segment_3d(p: DVec3, a: DVec3, b: DVec3) -> f64 {
-        let t = ((p - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
-        p.distance(a + (b - a) * t)
     }
 
     #[test]
