@@ -48,7 +48,8 @@ pub struct EncodeArgs {
     /// tenth of the diagonal farther from the mesh than its ellipsoid lies; so the file may
     /// hold more or fewer regions than -k asks for. A file the decoder meshes clean only
     /// after its first boundary treatment names the one that works (a remesh hint, 2 bytes),
-    /// so that decoders mesh it once.
+    /// so that decoders mesh it once; so does a file that the arcs as stored mesh clean and
+    /// closer to the mesh than the first treatment's (where the mesh has creases).
     #[arg(long)]
     no_verify: bool,
     /// Print the report as JSON on stdout (not with `-o -`).
