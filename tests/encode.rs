@@ -261,10 +261,13 @@ fn the_encoder_checks_its_file_against_the_decoder() {
 
 /// Real meshes whose K = 12 segmentation has regions the decoder cannot mesh (their
 /// boundaries fold in their charts, or their triangles flip): the encoder splits them, and
-/// the file it writes decodes clean.
+/// the file it writes decodes clean; a file that decodes clean as it is is not mended.
+/// fandisk's plain file has 2 flipped triangles; penguin's decodes clean (and so does
+/// horse's, the other mesh here before, since faces left turned lose their interior
+/// corners; its file is still mended, for regions far from the source).
 #[test]
 fn real_meshes_with_unchartable_regions_are_split_until_they_decode_clean() {
-    for name in ["penguin", "horse"] {
+    for name in ["penguin", "fandisk"] {
         let Some(mesh) = common::shared_mesh(name) else {
             return;
         };
