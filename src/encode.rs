@@ -933,8 +933,8 @@ fn closest_treatment(
     };
     let first = rms(decoded)?;
     let mut best = (first, used);
+    let mut hinted = representation.clone();
     for &t in later {
-        let mut hinted = representation.clone();
         hinted.metadata.remesh_hint = Some(t.code());
         // The file decoded clean with `used`: an error here is no reason to fail.
         let Ok(out) = crate::remesh::remesh(&hinted, options) else {

@@ -888,8 +888,9 @@ impl AdaptiveTriangulation {
         }
         let mut dropped = self.inner;
         let added = dropped.interior.len();
-        dropped.drop_turned_corners();
-        let dropped = dropped.finish();
+        // Its last round looked at every face: none is looked for again.
+        let left = dropped.drop_turned_corners();
+        let dropped = dropped.finish_knowing(left);
         if dropped.turned < swapped.turned
             && (added - dropped.interior.len()) as f64 <= MAX_DROPPED_SHARE * added as f64
         {
