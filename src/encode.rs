@@ -254,7 +254,8 @@ const DIRTY_AND_FAR: u8 = 3;
 const DOES_NOT_DECODE: u8 = 4;
 
 /// [`encode_mesh`] at the requested region count: the file, mended when checked (at most
-/// `max_rounds` rounds), and how it decodes ([`Verdict::score`]; clean when not checked).
+/// `max_rounds` rounds, then [`store_blamed_faithfully`]), and how it decodes
+/// ([`Verdict::score`]; clean when not checked).
 fn encode_checked(
     mesh: &Mesh,
     settings: &EncodeSettings,
@@ -298,6 +299,8 @@ fn encode_checked(
     let source = Source::new(mesh);
     let max_added = MAX_SPLIT_REGIONS.max(requested);
     let mut best: Option<(Score, Encoded)> = None;
+    // The regions the best file's check blamed.
+    let mut best_blamed: Vec<u32> = Vec::new();
     // How faithfully each region's boundaries are stored, for the present segmentation.
     let mut fidelity = vec![Fidelity::Smoothed; segmentation.region_count()];
     // The segmentations checked so far: mending must not go round in circles (dissolving
@@ -323,12 +326,7 @@ fn encode_checked(
         }
         let score = verdict.score();
         let rank = score.0;
-        let (blamed, problem) = match verdict {
-            Verdict::Clean => (Vec::new(), None),
-            Verdict::Far(_, regions, problem)
-            | Verdict::Dirty(_, regions, problem)
-            | Verdict::Fails(regions, problem) => (regions, Some(problem)),
-        };
+        let (blamed, problem) = verdict.blamed_and_problem();
         verification.problem = problem;
         let done = verification.problem.is_none();
         let candidate = Encoded::new(
@@ -339,6 +337,7 @@ fn encode_checked(
         );
         if best.as_ref().is_none_or(|(s, _)| score < *s) {
             best = Some((score, candidate));
+            best_blamed = blamed.iter().map(|s| s.region).collect();
         }
         if done || blamed.is_empty() || verification.rounds >= max_rounds {
             break;
@@ -422,11 +421,88 @@ fn encode_checked(
         fidelity = vec![Fidelity::Smoothed; segmentation.region_count()];
     }
     // The loop keeps an encoding before it can break.
-    best.map(|(score, mut encoded)| {
-        encoded.verification.tried = verified.saturating_sub(1);
-        (score, encoded)
-    })
-    .ok_or_else(|| EncodeMeshError::Unreachable("internal error: no encoding was kept".into()))
+    let kept = best
+        .map(|(score, mut encoded)| {
+            encoded.verification.tried = verified.saturating_sub(1);
+            (score, encoded)
+        })
+        .ok_or_else(|| {
+            EncodeMeshError::Unreachable("internal error: no encoding was kept".into())
+        })?;
+    store_blamed_faithfully(mesh, settings, &source, kept, best_blamed)
+}
+
+/// The last resort of [`encode_checked`] for a segmentation no round of its mending made
+/// decode clean: the best file (`kept`, whose decoder check blamed the regions `blamed`)
+/// is stored again with those regions' boundaries at the mesh's own points, simplified, then
+/// every one kept (the steps a region whose boundary cannot be charted takes first,
+/// [`Fidelity`]), the regions blamed at each step joining those of the next; the best file
+/// is kept. Boundaries smoothed toward the ellipsoids' intersections (section 4.1) can
+/// leave the junction of thin regions off them: a low-polygon spider's legs decoded with
+/// faces of boundary points only, turned over. At the mesh's points they follow the surface
+/// the ellipsoids were fitted to. It comes last: as a first step for every file that
+/// decodes with faults it mended the small meshes with more regions and bytes (9 of the 60
+/// files of `cargo bench --bench clean` changed, 14 962 → 16 238 bytes, 150 → 169 regions).
+fn store_blamed_faithfully(
+    mesh: &Mesh,
+    settings: &EncodeSettings,
+    source: &Source,
+    kept: (Score, Encoded),
+    mut blamed: Vec<u32>,
+) -> Result<(Score, Encoded), EncodeMeshError> {
+    if kept.0 .0 == CLEAN {
+        return Ok(kept);
+    }
+    let segmentation = kept.1.segmentation.clone();
+    let mut fidelity = vec![Fidelity::Smoothed; segmentation.region_count()];
+    let mut best = kept;
+    let mut tried = best.1.verification.tried;
+    loop {
+        let mut refined = false;
+        for &r in &blamed {
+            if let Some(f) = fidelity.get_mut(r as usize) {
+                if let Some(next) = f.next() {
+                    *f = next;
+                    refined = true;
+                }
+            }
+        }
+        if !refined {
+            break;
+        }
+        let Ok((mut stored, boundary_points)) = represent(mesh, &segmentation, settings, &fidelity)
+        else {
+            break;
+        };
+        let (verdict, treatment) = verify(&stored.bytes, source, &segmentation.labels)?;
+        tried += 1;
+        if let Some(t) = treatment.filter(|&t| t != Treatment::FIRST) {
+            stored.hint(t)?;
+        }
+        let score = verdict.score();
+        let (now_blamed, problem) = verdict.blamed_and_problem();
+        for r in now_blamed {
+            if !blamed.contains(&r.region) {
+                blamed.push(r.region);
+            }
+        }
+        if score < best.0 {
+            let verification = Verification {
+                rounds: tried,
+                problem,
+                ..best.1.verification.clone()
+            };
+            best = (
+                score,
+                Encoded::new(stored, segmentation.clone(), boundary_points, verification),
+            );
+        }
+        if best.0 .0 == CLEAN {
+            break;
+        }
+    }
+    best.1.verification.tried = tried;
+    Ok(best)
 }
 
 /// Most rounds of mending (boundaries stored more faithfully, regions dissolved or split)
@@ -484,6 +560,16 @@ enum Verdict {
 type Score = (u8, Faults, usize);
 
 impl Verdict {
+    /// The regions to blame and what went wrong (none for a clean file).
+    fn blamed_and_problem(self) -> (Vec<Split>, Option<String>) {
+        match self {
+            Verdict::Clean => (Vec::new(), None),
+            Verdict::Far(_, regions, problem)
+            | Verdict::Dirty(_, regions, problem)
+            | Verdict::Fails(regions, problem) => (regions, Some(problem)),
+        }
+    }
+
     /// Which encoding [`encode_mesh`] keeps when none decodes clean: the lowest score.
     fn score(&self) -> Score {
         match self {
@@ -1447,6 +1533,49 @@ pub fn encode_to_target(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The last resort of the decoder check ([`store_blamed_faithfully`]): teddy at K = 12,
+    /// with no round of mending allowed, is written with its blamed region's boundaries
+    /// smoothed, and that file decodes with a flipped triangle; stored at the mesh's points,
+    /// the same segmentation decodes clean, and that file is kept. Skipped without
+    /// `../shared/meshes`.
+    #[test]
+    fn a_file_no_round_mends_is_stored_again_with_its_blamed_boundaries_faithful() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes/teddy.obj");
+        if !path.is_file() {
+            println!("skipped: {} is absent", path.display());
+            return;
+        }
+        let mesh = crate::import::read_mesh(&path, &Default::default())
+            .unwrap()
+            .mesh;
+        let settings = EncodeSettings {
+            segment: SegmentOptions {
+                regions: RegionCount::Fixed(12),
+                ..SegmentOptions::default()
+            },
+            ..EncodeSettings::default()
+        };
+        let (score, encoded) = encode_checked(&mesh, &settings, 0, &mut |_| {}).unwrap();
+        // The same segmentation with every boundary smoothed: what round 0 wrote.
+        let smoothed = vec![Fidelity::Smoothed; encoded.segmentation.region_count()];
+        let (round_0, _) = represent(&mesh, &encoded.segmentation, &settings, &smoothed).unwrap();
+        let source = Source::new(&mesh);
+        let (verdict, _) = verify(&round_0.bytes, &source, &encoded.segmentation.labels).unwrap();
+        let round_0_score = verdict.score();
+        assert_eq!(
+            round_0_score.0, DIRTY,
+            "round 0 was expected to decode with faults"
+        );
+        assert!(round_0_score.1.bad_triangles > 0);
+        assert_eq!(score.0, CLEAN, "kept: {score:?}");
+        assert_eq!(encoded.verification.problem, None);
+        assert!(encoded.verification.rounds >= 1);
+        assert_ne!(encoded.bytes, round_0.bytes);
+        let (verdict, _) = verify(&encoded.bytes, &source, &encoded.segmentation.labels).unwrap();
+        assert_eq!(verdict.score().0, CLEAN);
+    }
 
     /// The decoder check's test for surface made up or left out in decoding, on a unit
     /// sphere fitted exactly: a decoded region meshed on the whole sphere where the source
