@@ -297,6 +297,31 @@ fn separate_spheres_obj(count: usize) -> String {
 }
 
 #[test]
+fn a_mesh_of_fewer_faces_than_the_default_regions_encodes_with_one_region_a_face() {
+    let dir = temp_dir("tetrahedron");
+    let input = dir.join("tetrahedron.obj");
+    std::fs::write(
+        &input,
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n",
+    )
+    .unwrap();
+    let input = input.to_string_lossy().into_owned();
+    let output = dir.join("tetrahedron.ellip").to_string_lossy().into_owned();
+    let out = ellip(&["encode", &input, "-o", &output, "--json"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("only 4 faces: 4 regions, one a face"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("separate components"), "{stderr}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("valid JSON");
+    assert_eq!(v["requested_regions"], 4);
+    assert_eq!(v["decode_check"], "clean");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn a_mesh_of_more_pieces_than_the_default_regions_encodes_with_one_more_region_each() {
     let dir = temp_dir("pieces");
     let input = dir.join("spheres.obj");

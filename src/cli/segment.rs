@@ -291,10 +291,14 @@ impl SegmentationArgs {
         }
         let k = default_region_count(mesh);
         if k != DEFAULT_REGIONS && !quiet {
-            eprintln!(
-                "note: the mesh has {} separate components: {k} regions ({DEFAULT_REGIONS}, and one for each further component); -k chooses",
-                mesh.topology().component_count()
-            );
+            if k == mesh.face_count() {
+                eprintln!("note: the mesh has only {k} faces: {k} regions, one a face; -k chooses");
+            } else {
+                eprintln!(
+                    "note: the mesh has {} separate components: {k} regions ({DEFAULT_REGIONS}, and one for each further component); -k chooses",
+                    mesh.topology().component_count()
+                );
+            }
         }
         SegmentOptions {
             regions: RegionCount::Fixed(k),
