@@ -351,19 +351,8 @@ fn encode_checked(
         // boundary far enough from the mesh's to fold it, or to close the gap between two of
         // its loops. Its boundaries are first stored at the mesh's points (simplified), then
         // as the mesh has them.
-        let mut refined = false;
-        for s in &blamed {
-            if let Some(f) = fidelity
-                .get_mut(s.region as usize)
-                .filter(|_| rank == DOES_NOT_DECODE)
-            {
-                if let Some(next) = f.next() {
-                    *f = next;
-                    refined = true;
-                }
-            }
-        }
-        if refined {
+        if rank == DOES_NOT_DECODE && raise_fidelity(&mut fidelity, blamed.iter().map(|s| s.region))
+        {
             continue;
         }
         // Small regions are dissolved into their neighbours (splitting them would only make
@@ -494,16 +483,7 @@ fn store_faithfully(
     let mut fidelity = vec![Fidelity::Smoothed; segmentation.region_count()];
     let mut tried = best.1.verification.tried;
     for _ in 0..FAITHFUL_STEPS {
-        let mut refined = false;
-        for &r in &blamed {
-            if let Some(f) = fidelity.get_mut(r as usize) {
-                if let Some(next) = f.next() {
-                    *f = next;
-                    refined = true;
-                }
-            }
-        }
-        if !refined {
+        if !raise_fidelity(&mut fidelity, blamed.iter().copied()) {
             break;
         }
         let Ok((mut stored, boundary_points)) = represent(mesh, &segmentation, settings, &fidelity)
@@ -1254,6 +1234,20 @@ impl Fidelity {
             Fidelity::Exact => None,
         }
     }
+}
+
+/// Raises each of `regions`' fidelity one step ([`Fidelity::next`]); whether any was raised.
+fn raise_fidelity(fidelity: &mut [Fidelity], regions: impl IntoIterator<Item = u32>) -> bool {
+    let mut raised = false;
+    for r in regions {
+        if let Some(f) = fidelity.get_mut(r as usize) {
+            if let Some(next) = f.next() {
+                *f = next;
+                raised = true;
+            }
+        }
+    }
+    raised
 }
 
 /// Grid resolutions the automatic choice tries. Coarser grids give smaller files still (9
