@@ -5,7 +5,8 @@
 mod common;
 
 use ellip::boundary::{
-    extract_boundaries, smooth_boundaries, BoundaryGraph, Cycle, Side, SmoothOptions,
+    extract_boundaries, smooth_boundaries, smooth_boundaries_holding, BoundaryGraph, Cycle, Side,
+    SmoothOptions,
 };
 use ellip::ellipsoid::Ellipsoid;
 use ellip::import::{read_mesh, ImportOptions};
@@ -1060,6 +1061,61 @@ fn junctions_move_toward_the_points_common_to_their_spheres() {
         );
     }
     assert!(triple >= 2, "three regions meet at both common points");
+}
+
+#[test]
+fn held_junctions_stay_where_the_mesh_has_them_and_the_arcs_relax_around_them() {
+    // The three spheres above: held, the junctions keep their mesh positions exactly (free,
+    // they move toward the spheres' common points); every other point still relaxes onto
+    // the intersection of its two spheres, those near a held junction bent toward it.
+    let d = 0.9;
+    let spheres: Vec<(DVec3, f64)> = (0..3)
+        .map(|k| {
+            let a = k as f64 * std::f64::consts::TAU / 3.0;
+            (DVec3::new(d * a.cos(), d * a.sin(), 0.0), 1.0)
+        })
+        .collect();
+    let (mesh, labels, ellipsoids) = union_of_spheres(&spheres, 20_000);
+    let graph = extract_boundaries(&mesh, &labels, 3).unwrap();
+    let options = SmoothOptions::default();
+    let free = smooth_boundaries(&mesh, &graph, &ellipsoids, &options).unwrap();
+    let held =
+        smooth_boundaries_holding(&mesh, &graph, &ellipsoids, &options, &graph.junctions).unwrap();
+    assert!(graph.junctions.len() >= 2);
+    let h = mesh.average_edge_length();
+    for &j in &graph.junctions {
+        let k = graph.vertices.binary_search(&j).unwrap();
+        let p = mesh.positions()[j as usize];
+        assert_eq!(held[k], p, "junction {j} moved");
+        assert!(
+            free[k].distance(p) > 1e-3 * h,
+            "junction {j} stays put unheld"
+        );
+    }
+    // Ordinary points: the median distance to their two spheres is as small as without
+    // holding (a tenth of an edge, the bound of the two-sphere test).
+    let mut distances: Vec<f64> = Vec::new();
+    for arc in &graph.arcs {
+        let Side::Region(r) = arc.right else { continue };
+        for &v in &arc.vertices[1..arc.vertices.len() - 1] {
+            let k = graph.vertices.binary_search(&v).unwrap();
+            let off = [arc.left, r]
+                .iter()
+                .map(|&e| ellipsoids[e as usize].radial_distance(held[k]))
+                .fold(0.0, f64::max);
+            distances.push(off);
+        }
+    }
+    distances.sort_by(f64::total_cmp);
+    let median = distances[distances.len() / 2];
+    assert!(median < 0.1 * h, "median {median} (edge {h})");
+    // A vertex that is not on the boundary is ignored.
+    let interior = (0..mesh.vertex_count() as u32)
+        .find(|v| graph.vertices.binary_search(v).is_err())
+        .unwrap();
+    let same =
+        smooth_boundaries_holding(&mesh, &graph, &ellipsoids, &options, &[interior]).unwrap();
+    assert_eq!(same, free);
 }
 
 #[test]

@@ -53,7 +53,10 @@
 
 mod smooth;
 
-pub use smooth::{smooth_boundaries, SmoothOptions, DEFAULT_EPSILON, DEFAULT_ITERATIONS};
+pub use smooth::{
+    smooth_boundaries, smooth_boundaries_holding, SmoothOptions, DEFAULT_EPSILON,
+    DEFAULT_ITERATIONS,
+};
 
 use crate::mesh::{find_root, join_sets, Mesh};
 use glam::DVec3;

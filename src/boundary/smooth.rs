@@ -106,6 +106,24 @@ pub fn smooth_boundaries(
     ellipsoids: &[Ellipsoid],
     options: &SmoothOptions,
 ) -> Result<Vec<DVec3>, BoundaryError> {
+    smooth_boundaries_holding(mesh, graph, ellipsoids, options, &[])
+}
+
+/// [`smooth_boundaries`] with the mesh vertices in `held` kept where the mesh has them (the
+/// others relax around them). For junctions: where the ellipsoids around one meet far from
+/// the mesh, the relaxation drags it toward their common point, across a region narrower
+/// than the distance (a low-poly spider's leg: a junction moved 0.77 units across a region
+/// about one unit wide, whose loop then ran the other way round and decoded as one turned
+/// triangle); the encoder's last search holds every junction
+/// ([`crate::encode::encode_mesh`]). Vertices of `held` that are not boundary vertices are
+/// ignored.
+pub fn smooth_boundaries_holding(
+    mesh: &Mesh,
+    graph: &BoundaryGraph,
+    ellipsoids: &[Ellipsoid],
+    options: &SmoothOptions,
+    held: &[u32],
+) -> Result<Vec<DVec3>, BoundaryError> {
     let epsilon = options.epsilon;
     if !(0.0..=1.0).contains(&epsilon) {
         return Err(BoundaryError::BadOptions {
@@ -132,8 +150,13 @@ pub fn smooth_boundaries(
         points.push(*p);
     }
     let links = Links::build(graph, ellipsoids, &points)?;
-    // The points of small holes stay where the mesh has them.
+    // The points of small holes stay where the mesh has them, and so do those held.
     let mut pinned = vec![false; points.len()];
+    for v in held {
+        if let Ok(k) = graph.vertices.binary_search(v) {
+            pinned[k] = true;
+        }
+    }
     for border in mesh.topology().boundary_loops() {
         if border.len() < MIN_SMOOTHED_BORDER_LOOP {
             for v in border {
