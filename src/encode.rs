@@ -1,8 +1,9 @@
 //! Encode: a mesh to its ellipsoidal representation and to `.ellip` bytes.
 //!
 //! The pipeline, one stage per module: [`segment`](crate::segment) the faces into regions
-//! with their ellipsoids → [`extract_boundaries`] → [`smooth_boundaries`] toward the
-//! ellipsoids (Simari & Singh 2005, section 4.1) → [`Representation::from_boundary`] →
+//! with their ellipsoids → [`extract_boundaries`] →
+//! [`smooth_boundaries`](crate::boundary::smooth_boundaries) toward the ellipsoids (Simari &
+//! Singh 2005, section 4.1) → [`Representation::from_boundary`] →
 //! [`Representation::simplify_arcs`] (Douglas–Peucker, the paper's future-work note) →
 //! [`format::encode`] (quantised, compressed, checksummed; `spec/ELLIP.md`) → the decoder
 //! check: the file is remeshed as a reader would (but without leaving out the regions it
@@ -13,7 +14,9 @@
 //! split ([`split_regions`]), and so is a region decoded clean but far from the source
 //! where its ellipsoid is not ([`MAX_DEPARTURE`]).
 
-use crate::boundary::{extract_boundaries, smooth_boundaries, BoundaryError, SmoothOptions};
+use crate::boundary::{
+    extract_boundaries, smooth_boundaries_holding, BoundaryError, SmoothOptions,
+};
 use crate::compare::Bvh;
 use crate::ellipsoid::Ellipsoid;
 use crate::format::{self, simplify::DEFAULT_RELATIVE_TOLERANCE, EncodeError, EncodeOptions};
@@ -145,12 +148,18 @@ pub fn encode_mesh(
     settings: &EncodeSettings,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Encoded, EncodeMeshError> {
-    let first = encode_checked(mesh, settings, MAX_SPLIT_ROUNDS, progress)?;
+    let first = encode_checked(
+        mesh,
+        settings,
+        MAX_SPLIT_ROUNDS,
+        Fidelity::Smoothed,
+        progress,
+    )?;
     if !settings.verify || first.score.0 == CLEAN {
         return Ok(first.encoded);
     }
     let RegionCount::Fixed(requested) = settings.segment.regions else {
-        return store_blamed_faithfully(mesh, settings, vec![first]);
+        return Ok(store_blamed_faithfully(mesh, settings, vec![first])?.encoded);
     };
     // No file at the requested count decodes clean, however mended. First the segmentation
     // is done again with each face's error weighted by its area (the metric as an integral
@@ -165,8 +174,9 @@ pub fn encode_mesh(
     // split, did not decode whole and decoded clean at 18 (since the decoder's first attempt
     // prunes only narrow double ears, its weighted segmentation mended is clean first). The
     // best file is kept, the first clean one ending the search; when none is clean, each
-    // search's best is stored again as a last resort (store_blamed_faithfully).
-    let mut tried = vec![first];
+    // search's best is stored again as a last resort (store_blamed_faithfully), and failing
+    // that, every search is made again with the junctions held where the mesh has them.
+    let mut searches: Vec<(EncodeSettings, usize)> = Vec::new();
     if !settings.segment.area_weighting {
         let weighted = EncodeSettings {
             segment: SegmentOptions {
@@ -175,13 +185,7 @@ pub fn encode_mesh(
             },
             ..settings.clone()
         };
-        if let Ok(mut checked) = encode_checked(mesh, &weighted, MAX_REWEIGHTED_ROUNDS, progress) {
-            checked.encoded.verification.area_weighted = true;
-            if checked.score.0 == CLEAN {
-                return Ok(checked.encoded);
-            }
-            tried.push(checked);
-        }
+        searches.push((weighted, MAX_REWEIGHTED_ROUNDS));
     }
     let mut k = requested;
     // Each further connected component holds a region of its own: the count raised is that
@@ -200,17 +204,82 @@ pub fn encode_mesh(
             },
             ..settings.clone()
         };
-        let Ok(mut checked) = encode_checked(mesh, &settings, MAX_SPLIT_ROUNDS, progress) else {
-            break;
+        searches.push((settings, MAX_SPLIT_ROUNDS));
+    }
+    let mut tried = vec![first];
+    for (search, rounds) in &searches {
+        let Some(checked) = search_again(
+            mesh,
+            settings,
+            search,
+            *rounds,
+            Fidelity::Smoothed,
+            progress,
+        ) else {
+            continue;
         };
-        checked.encoded.verification.requested_regions = requested;
-        checked.encoded.verification.raised_regions = Some(k);
         if checked.score.0 == CLEAN {
             return Ok(checked.encoded);
         }
         tried.push(checked);
     }
-    store_blamed_faithfully(mesh, settings, tried)
+    let mut best = store_blamed_faithfully(mesh, settings, tried)?;
+    if best.score.0 == CLEAN || best.score.0 == DOES_NOT_DECODE {
+        return Ok(best.encoded);
+    }
+    // Every search again, the requested one first, with the junctions held where the mesh
+    // has them while the arcs relax (Fidelity::Junctions). Where three ellipsoids meet far
+    // from the mesh, the relaxation drags a junction toward that point and across a narrow
+    // region, whose loop then runs the other way round (assimp's low-poly spider: 27
+    // flipped triangles at K = 35, clean with the junctions held). Only for a file that
+    // decodes: a turned loop gives turned faces, not a chart that fails, and Stanford's
+    // dragon at `res3` (886 pieces, no file of which decodes) took 201 s instead of 109 to
+    // come to the same file.
+    let again = std::iter::once((settings.clone(), MAX_SPLIT_ROUNDS)).chain(searches);
+    for (search, rounds) in again {
+        let Some(checked) = search_again(
+            mesh,
+            settings,
+            &search,
+            rounds,
+            Fidelity::Junctions,
+            progress,
+        ) else {
+            continue;
+        };
+        if checked.score.0 == CLEAN {
+            return Ok(checked.encoded);
+        }
+        if checked.score < best.score {
+            best = checked;
+        }
+    }
+    Ok(best.encoded)
+}
+
+/// One of [`encode_mesh`]'s searches after the first: `search` (`asked` with the weighting
+/// or the count changed) checked and mended from `floor`, its file saying what changed;
+/// `None` if it failed.
+fn search_again(
+    mesh: &Mesh,
+    asked: &EncodeSettings,
+    search: &EncodeSettings,
+    rounds: usize,
+    floor: Fidelity,
+    progress: &mut dyn FnMut(Progress),
+) -> Option<Checked> {
+    let mut checked = encode_checked(mesh, search, rounds, floor, progress).ok()?;
+    let verification = &mut checked.encoded.verification;
+    verification.area_weighted = search.segment.area_weighting && !asked.segment.area_weighting;
+    if let (RegionCount::Fixed(k), RegionCount::Fixed(requested)) =
+        (search.segment.regions, asked.segment.regions)
+    {
+        if k != requested {
+            verification.requested_regions = requested;
+            verification.raised_regions = Some(k);
+        }
+    }
+    Some(checked)
 }
 
 /// What [`encode_checked`] keeps: the file, how it decodes, and the regions its decoder
@@ -262,6 +331,7 @@ fn encode_checked(
     mesh: &Mesh,
     settings: &EncodeSettings,
     max_rounds: usize,
+    floor: Fidelity,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Checked, EncodeMeshError> {
     let tolerance = settings.simplify_tolerance;
@@ -283,7 +353,8 @@ fn encode_checked(
         problem: None,
     };
     if !settings.verify {
-        let (stored, boundary_points) = represent(mesh, &segmentation, settings, &[])?;
+        let fidelity = vec![floor; segmentation.region_count()];
+        let (stored, boundary_points) = represent(mesh, &segmentation, settings, &fidelity)?;
         return Ok(Checked {
             score: Verdict::Clean.score(),
             encoded: Encoded::new(stored, segmentation, boundary_points, verification),
@@ -305,7 +376,7 @@ fn encode_checked(
     // The regions the best file's check blamed.
     let mut best_blamed: Vec<u32> = Vec::new();
     // How faithfully each region's boundaries are stored, for the present segmentation.
-    let mut fidelity = vec![Fidelity::Smoothed; segmentation.region_count()];
+    let mut fidelity = vec![floor; segmentation.region_count()];
     // The segmentations checked so far: mending must not go round in circles (dissolving
     // the small region a split made gives back the segmentation before the split).
     let mut checked: Vec<Vec<u32>> = vec![segmentation.labels.clone()];
@@ -410,7 +481,7 @@ fn encode_checked(
             break;
         }
         checked.push(segmentation.labels.clone());
-        fidelity = vec![Fidelity::Smoothed; segmentation.region_count()];
+        fidelity = vec![floor; segmentation.region_count()];
     }
     // The loop keeps an encoding before it can break.
     best.map(|(score, mut encoded)| {
@@ -424,7 +495,8 @@ fn encode_checked(
     .ok_or_else(|| EncodeMeshError::Unreachable("internal error: no encoding was kept".into()))
 }
 
-/// The last resort of [`encode_mesh`] when no search gave a file that decodes clean: each
+/// What [`encode_mesh`] does first when no search gave a file that decodes clean (before
+/// making every search again with the junctions held, [`Fidelity::Junctions`]): each
 /// search's best file (`tried`: the requested segmentation's, then the one weighted by
 /// area, then the raised ones, each mended as far as it went), in that order, is stored
 /// again with the boundaries of the regions its decoder check blamed at the mesh's own
@@ -451,20 +523,19 @@ fn store_blamed_faithfully(
     mesh: &Mesh,
     settings: &EncodeSettings,
     tried: Vec<Checked>,
-) -> Result<Encoded, EncodeMeshError> {
+) -> Result<Checked, EncodeMeshError> {
     let source = Source::new(mesh);
     let mut best: Option<Checked> = None;
     for checked in tried {
         let checked = store_faithfully(mesh, settings, &source, checked)?;
         if checked.score.0 == CLEAN {
-            return Ok(checked.encoded);
+            return Ok(checked);
         }
         if best.as_ref().is_none_or(|b| checked.score < b.score) {
             best = Some(checked);
         }
     }
-    best.map(|b| b.encoded)
-        .ok_or_else(|| EncodeMeshError::Unreachable("internal error: no encoding was kept".into()))
+    best.ok_or_else(|| EncodeMeshError::Unreachable("internal error: no encoding was kept".into()))
 }
 
 /// One file of [`store_blamed_faithfully`]: `kept` and, stored again as it says, the better.
@@ -1120,8 +1191,6 @@ fn represent(
 ) -> Result<(Stored, usize), EncodeMeshError> {
     let tolerance = settings.simplify_tolerance;
     let graph = extract_boundaries(mesh, &segmentation.labels, segmentation.region_count())?;
-    let smoothed = smooth_boundaries(mesh, &graph, &segmentation.proxies, &settings.smooth)?;
-    let mut positions = mesh.positions().to_vec();
     // An arc is stored as faithfully as the more faithful of its two regions asks; arcs at
     // the mesh's points keep them, junctions included. A speck (a piece of a scan too small
     // for an ellipsoid, `speck_faces`) is stored exactly from the start: smoothing moves
@@ -1144,6 +1213,19 @@ fn represent(
     };
     let arc_fidelity =
         |left: u32, right: Option<u32>| of(left).max(right.map_or(Fidelity::Smoothed, of));
+    // The junctions of arcs stored as Fidelity::Junctions stay where the mesh has them
+    // while the others relax.
+    let held: Vec<u32> = graph
+        .arcs
+        .iter()
+        .filter(|a| !a.closed && arc_fidelity(a.left, a.right.region()) == Fidelity::Junctions)
+        .flat_map(|a| [a.vertices.first(), a.vertices.last()])
+        .flatten()
+        .copied()
+        .collect();
+    let smoothed =
+        smooth_boundaries_holding(mesh, &graph, &segmentation.proxies, &settings.smooth, &held)?;
+    let mut positions = mesh.positions().to_vec();
     let mut keep = vec![false; mesh.vertex_count()];
     let unsmoothed = graph
         .arcs
@@ -1214,11 +1296,15 @@ fn represent(
 }
 
 /// How faithfully a region's boundaries are stored. The encoder's decoder check raises it
-/// for regions the decoder cannot chart, one step a round.
+/// for regions the decoder cannot chart, one step a round; its last search starts every
+/// region at [`Fidelity::Junctions`] (see [`encode_mesh`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 enum Fidelity {
     /// Smoothed toward the ellipsoids (section 4.1) and simplified: the default.
     Smoothed,
+    /// Smoothed and simplified, but the junctions kept where the mesh has them
+    /// ([`smooth_boundaries_holding`]).
+    Junctions,
     /// At the mesh's own points, simplified.
     MeshPoints,
     /// At the mesh's own points, every one kept (only the grid moves them).
@@ -1226,10 +1312,12 @@ enum Fidelity {
 }
 
 impl Fidelity {
-    /// The next, more faithful step, if any.
+    /// The next, more faithful step, if any: a boundary the decoder cannot chart, or one
+    /// whose faces turn, is stored at the mesh's points (a fold or two loops touching is the
+    /// arcs', not only the junctions').
     fn next(self) -> Option<Fidelity> {
         match self {
-            Fidelity::Smoothed => Some(Fidelity::MeshPoints),
+            Fidelity::Smoothed | Fidelity::Junctions => Some(Fidelity::MeshPoints),
             Fidelity::MeshPoints => Some(Fidelity::Exact),
             Fidelity::Exact => None,
         }
@@ -1462,7 +1550,8 @@ pub fn encode_to_target(
             ..settings.clone()
         };
         // The search chooses the region count itself: no raising.
-        let encoded = encode_checked(mesh, &s, MAX_SPLIT_ROUNDS, &mut |_| {})?.encoded;
+        let encoded =
+            encode_checked(mesh, &s, MAX_SPLIT_ROUNDS, Fidelity::Smoothed, &mut |_| {})?.encoded;
         let measured = measure_encoding(mesh, &encoded.bytes)?;
         let bytes = store_measurement(&encoded, &measured)?;
         let p = Probe {
@@ -1596,13 +1685,15 @@ mod tests {
             ..EncodeSettings::default()
         };
         // Round 0's file, smoothed boundaries, no mending: it decodes with faults.
-        let round_0 = encode_checked(&mesh, &settings, 0, &mut |_| {}).unwrap();
+        let round_0 = encode_checked(&mesh, &settings, 0, Fidelity::Smoothed, &mut |_| {}).unwrap();
         assert_eq!(round_0.score.0, DIRTY, "round 0: {:?}", round_0.score);
         assert!(round_0.score.1.bad_triangles > 0);
         assert!(!round_0.blamed.is_empty());
         let round_0_bytes = round_0.encoded.bytes.clone();
         let labels = round_0.encoded.segmentation.labels.clone();
-        let kept = store_blamed_faithfully(&mesh, &settings, vec![round_0]).unwrap();
+        let kept = store_blamed_faithfully(&mesh, &settings, vec![round_0])
+            .unwrap()
+            .encoded;
         assert_eq!(kept.segmentation.labels, labels);
         assert_eq!(kept.verification.problem, None);
         assert_eq!(kept.verification.rounds, 1, "clean at the first step");
@@ -1750,7 +1841,7 @@ mod tests {
             .mesh;
         let settings = EncodeSettings {
             segment: crate::segment::SegmentOptions {
-                regions: crate::segment::RegionCount::Fixed(5),
+                regions: crate::segment::RegionCount::Fixed(8),
                 max_iterations: 10,
                 ..Default::default()
             },
@@ -1760,7 +1851,13 @@ mod tests {
         let metric = EllipsoidMetric::new(&mesh, &settings.segment).unwrap();
         let seg = segment_with(&mesh, &metric, &settings.segment, &mut |_| {}).unwrap();
         let graph = extract_boundaries(&mesh, &seg.labels, seg.region_count()).unwrap();
-        let chosen = 1u32;
+        // A region with junctions.
+        let chosen = graph
+            .arcs
+            .iter()
+            .find(|a| !a.closed)
+            .map(|a| a.left)
+            .unwrap();
         let touches = |left: u32, right: Option<u32>| left == chosen || right == Some(chosen);
         // Stored points on arcs of the chosen region, and on the others, by how far they lie
         // from the nearest mesh vertex of those arcs.
@@ -1803,6 +1900,32 @@ mod tests {
         assert!(points
             .iter()
             .any(|&i| nearest(smoothed.points[i as usize]) > 1e-3 * diagonal));
+        // Junctions held: the chosen region's junctions are exactly where the mesh has
+        // them, which smoothing moved; its arcs' other points are still smoothed.
+        let junctions: Vec<DVec3> = graph
+            .arcs
+            .iter()
+            .filter(|a| !a.closed && touches(a.left, a.right.region()))
+            .flat_map(|a| [a.vertices[0], a.vertices[a.vertices.len() - 1]])
+            .map(|v| mesh.positions()[v as usize])
+            .collect();
+        assert!(!junctions.is_empty());
+        let ends = |rep: &Representation| -> Vec<DVec3> {
+            rep.arcs
+                .iter()
+                .filter(|a| !a.closed && touches(a.left, a.right.region()))
+                .flat_map(|a| [a.points[0], a.points[a.points.len() - 1]])
+                .map(|i| rep.points[i as usize])
+                .collect()
+        };
+        let at_junction = |p: &DVec3| junctions.contains(p);
+        assert!(!ends(&smoothed).iter().all(at_junction));
+        let held = stored(Fidelity::Junctions);
+        assert!(ends(&held).iter().all(at_junction));
+        let (points, _) = arcs_of(&held);
+        assert!(points
+            .iter()
+            .any(|&i| nearest(held.points[i as usize]) > 1e-3 * diagonal));
         // At the mesh's points: every stored point is one (up to the grid's rounding, which
         // `represent` leaves to the file: the representation is before quantisation).
         let at_mesh = stored(Fidelity::MeshPoints);
