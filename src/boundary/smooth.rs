@@ -38,7 +38,7 @@
 //!   meet far from the mesh, the pull can drag it across a narrow region and turn that
 //!   region's loop round; the encoder's last search holds every junction where the mesh has
 //!   it ([`smooth_boundaries_holding`]). Holding them always would cost: the 60 small-mesh
-//!   files took 1 167 regions and 123 406 bytes instead of 1 140 and 120 217, and duck at
+//!   files took 1 167 regions and 123 406 bytes instead of 1 138 and 120 069, and duck at
 //!   K = 32 kept 2 flipped triangles.
 //! - A point on a mesh-border arc uses its two neighbours along the border and the one
 //!   ellipsoid of its region: the border is smoothed along that ellipsoid (it has no second
