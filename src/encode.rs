@@ -325,7 +325,8 @@ const DIRTY_AND_FAR: u8 = 3;
 const DOES_NOT_DECODE: u8 = 4;
 
 /// [`encode_mesh`] at the requested region count: the file, mended when checked (at most
-/// `max_rounds` rounds), how it decodes ([`Verdict::score`]; clean when not checked) and the
+/// `max_rounds` rounds; every region's boundaries stored at `floor`, the mending raising
+/// them from there), how it decodes ([`Verdict::score`]; clean when not checked) and the
 /// regions its check blamed.
 fn encode_checked(
     mesh: &Mesh,
