@@ -32,6 +32,7 @@ use crate::segment::{
 };
 use glam::DVec3;
 use rayon::prelude::*;
+use std::cmp::Ordering;
 
 /// Everything the encoder can be told. Every field has a default ([`Default`]).
 #[derive(Debug, Clone, PartialEq)]
@@ -155,11 +156,27 @@ pub fn encode_mesh(
         Fidelity::Smoothed,
         progress,
     )?;
+    Ok(search_for_clean(mesh, settings, first, None, true, progress)?.encoded)
+}
+
+/// What [`encode_mesh`] does when `first`, the file at the settings asked for (checked and
+/// mended), does not decode clean: the searches below, the count raised only with
+/// `raise` (rate control chooses the count itself, [`encode_to_target`]); `first` itself
+/// when it is clean or was not checked. `weighted` is the area-weighted search's file when
+/// the caller made it already (rate control's probes), else it is made here.
+fn search_for_clean(
+    mesh: &Mesh,
+    settings: &EncodeSettings,
+    first: Checked,
+    weighted: Option<Checked>,
+    raise: bool,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Checked, EncodeMeshError> {
     if !settings.verify || first.score.0 == CLEAN {
-        return Ok(first.encoded);
+        return Ok(first);
     }
     let RegionCount::Fixed(requested) = settings.segment.regions else {
-        return Ok(store_blamed_faithfully(mesh, settings, vec![first])?.encoded);
+        return store_blamed_faithfully(mesh, settings, vec![first]);
     };
     // No file at the requested count decodes clean, however mended. First the segmentation
     // is done again with each face's error weighted by its area (the metric as an integral
@@ -177,21 +194,15 @@ pub fn encode_mesh(
     // search's best is stored again as a last resort (store_blamed_faithfully), and failing
     // that, every search is made again with the junctions held where the mesh has them.
     let mut searches: Vec<(EncodeSettings, usize)> = Vec::new();
-    if !settings.segment.area_weighting {
-        let weighted = EncodeSettings {
-            segment: SegmentOptions {
-                area_weighting: true,
-                ..settings.segment.clone()
-            },
-            ..settings.clone()
-        };
+    if let Some(weighted) = area_weighted(settings) {
         searches.push((weighted, MAX_REWEIGHTED_ROUNDS));
     }
     let mut k = requested;
     // Each further connected component holds a region of its own: the count raised is that
     // of the regions beyond those (dragon's 875 fragments stay one region each).
     let pieces = mesh.topology().component_count().saturating_sub(1);
-    for _ in 0..MAX_REGION_RAISES {
+    let raises = if raise { MAX_REGION_RAISES } else { 0 };
+    for _ in 0..raises {
         let raised = (k + k.saturating_sub(pieces).div_ceil(2)).min(mesh.face_count());
         if raised <= k {
             break;
@@ -207,25 +218,34 @@ pub fn encode_mesh(
         searches.push((settings, MAX_SPLIT_ROUNDS));
     }
     let mut tried = vec![first];
+    let mut weighted = weighted;
     for (search, rounds) in &searches {
-        let Some(checked) = search_again(
-            mesh,
-            settings,
-            search,
-            *rounds,
-            Fidelity::Smoothed,
-            progress,
-        ) else {
+        // The weighted search's file, when the caller made it.
+        let made = if search.segment.area_weighting != settings.segment.area_weighting {
+            weighted.take()
+        } else {
+            None
+        };
+        let Some(checked) = made.or_else(|| {
+            search_again(
+                mesh,
+                settings,
+                search,
+                *rounds,
+                Fidelity::Smoothed,
+                progress,
+            )
+        }) else {
             continue;
         };
         if checked.score.0 == CLEAN {
-            return Ok(checked.encoded);
+            return Ok(checked);
         }
         tried.push(checked);
     }
     let mut best = store_blamed_faithfully(mesh, settings, tried)?;
     if best.score.0 == CLEAN || best.score.0 == DOES_NOT_DECODE {
-        return Ok(best.encoded);
+        return Ok(best);
     }
     // Every search again, the requested one first, with the junctions held where the mesh
     // has them while the arcs relax (Fidelity::Junctions). Where three ellipsoids meet far
@@ -248,13 +268,26 @@ pub fn encode_mesh(
             continue;
         };
         if checked.score.0 == CLEAN {
-            return Ok(checked.encoded);
+            return Ok(checked);
         }
         if checked.score < best.score {
             best = checked;
         }
     }
-    Ok(best.encoded)
+    Ok(best)
+}
+
+/// `settings` with each face's error weighted by its area ([`SegmentOptions::area_weighting`],
+/// the first of the searches [`encode_mesh`] makes for a file that does not decode clean),
+/// unless it already is.
+fn area_weighted(settings: &EncodeSettings) -> Option<EncodeSettings> {
+    (!settings.segment.area_weighting).then(|| EncodeSettings {
+        segment: SegmentOptions {
+            area_weighting: true,
+            ..settings.segment.clone()
+        },
+        ..settings.clone()
+    })
 }
 
 /// One of [`encode_mesh`]'s searches after the first: `search` (`asked` with the weighting
@@ -284,6 +317,7 @@ fn search_again(
 
 /// What [`encode_checked`] keeps: the file, how it decodes, and the regions its decoder
 /// check blamed (none when clean or not checked).
+#[derive(Clone)]
 struct Checked {
     score: Score,
     encoded: Encoded,
@@ -1464,6 +1498,61 @@ pub enum Target {
     MaxBytes(usize),
 }
 
+impl Target {
+    /// Whether `probe` meets the target.
+    fn is_met_by(&self, probe: &Probe) -> bool {
+        match *self {
+            Target::Rms(t) => probe.rms <= t,
+            Target::MaxBytes(n) => probe.bytes <= n,
+        }
+    }
+
+    /// How `a` compares with `b` for the target, lesser better: the smaller file (then the
+    /// lower error) for an RMS target, the lower error (then the smaller file) for a budget.
+    fn rank(&self, a: &Probe, b: &Probe) -> Ordering {
+        match self {
+            Target::Rms(_) => a.bytes.cmp(&b.bytes).then(a.rms.total_cmp(&b.rms)),
+            Target::MaxBytes(_) => a.rms.total_cmp(&b.rms).then(a.bytes.cmp(&b.bytes)),
+        }
+    }
+}
+
+/// The probe [`encode_to_target`] keeps, if any meets the target: one that decodes clean
+/// before one that does not (a mesh with turned triangles or an open seam is no smaller or
+/// closer in any way that matters), then the best for the target ([`Target::rank`]), then
+/// the earliest.
+fn chosen_probe(probes: &[Probe], target: Target) -> Option<usize> {
+    (0..probes.len())
+        .filter(|&i| target.is_met_by(&probes[i]))
+        .min_by(|&i, &j| {
+            let (a, b) = (&probes[i], &probes[j]);
+            b.clean.cmp(&a.clean).then(target.rank(a, b))
+        })
+}
+
+/// The probe whose setting [`encode_to_target`] searches again ([`encode_mesh`]'s searches
+/// for a file that does not decode clean, the count not raised): the best that meets the
+/// target, cleanliness aside, when it does not decode clean. Before the probes were
+/// searched with area weighting too, it mended the horse in 1 500 bytes: K = 6, 1.50 % and
+/// not manifold, became a clean file at 1.16 % in 1 219 bytes. It did not mend the duck
+/// within 0.5 % (K = 48 at 4× the boundary tolerance, 3 flipped triangles).
+fn probe_to_search_again(probes: &[Probe], target: Target) -> Option<usize> {
+    (0..probes.len())
+        .filter(|&i| target.is_met_by(&probes[i]))
+        .min_by(|&i, &j| target.rank(&probes[i], &probes[j]))
+        .filter(|&i| !probes[i].clean)
+}
+
+/// What [`encode_to_target`] made at one setting: the file at it and, when that did not
+/// decode clean, the area-weighted search's; the better of them measured.
+#[derive(Clone)]
+struct Probed {
+    probe: Probe,
+    plain: Checked,
+    weighted: Option<Checked>,
+    kept: RateControlled,
+}
+
 /// One setting rate control tried.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Probe {
@@ -1475,6 +1564,11 @@ pub struct Probe {
     pub bytes: usize,
     /// Measured RMS error as a fraction of the diagonal.
     pub rms: f64,
+    /// Whether the file decodes clean (or was not checked: `EncodeSettings::verify` off).
+    pub clean: bool,
+    /// Whether this is the file [`encode_mesh`]'s further searches made at the setting of
+    /// an earlier probe that did not decode clean (see [`encode_to_target`]).
+    pub searched_again: bool,
 }
 
 /// The result of rate control.
@@ -1507,7 +1601,11 @@ pub const MAX_RATE_REGIONS: usize = 256;
 /// regions (the decoder check's mending makes bytes jump between neighbouring K: CGAL's
 /// elephant at 1 500 bytes had K = 3, 6 regions, 758 bytes). Error falls and
 /// size grows with K only roughly: the search returns the best probe that meets the target
-/// (smallest file, or lowest error within the budget), never one that misses it.
+/// (smallest file, or lowest error within the budget), never one that misses it, and one
+/// that decodes clean before one that does not. When the best probe that meets the target
+/// does not decode clean, its setting gets the further searches [`encode_mesh`] makes for
+/// such a file, the count not raised, and their file is one more probe
+/// ([`Probe::searched_again`]).
 /// `settings.segment.regions` is ignored; `report` hears of each probe.
 pub fn encode_to_target(
     mesh: &Mesh,
@@ -1534,49 +1632,81 @@ pub fn encode_to_target(
     // MAX_RATE_REGIONS beyond one for each further component.
     let min_k = mesh.topology().component_count().max(1);
     let max_k = (min_k - 1 + MAX_RATE_REGIONS).min(mesh.face_count().max(1));
-    let mut tried: Vec<(Probe, RateControlled)> = Vec::new();
-    let mut probe = |k: usize, tolerance: f64, tried: &mut Vec<(Probe, RateControlled)>| {
-        if let Some((p, _)) = tried
-            .iter()
-            .find(|(p, _)| p.regions == k && p.boundary_tolerance == tolerance)
-        {
-            return Ok::<Probe, EncodeMeshError>(*p);
-        }
-        let s = EncodeSettings {
-            segment: SegmentOptions {
-                regions: RegionCount::Fixed(k),
-                ..settings.segment.clone()
-            },
-            simplify_tolerance: tolerance,
-            ..settings.clone()
+    let mut tried: Vec<Probed> = Vec::new();
+    let settings_at = |k: usize, tolerance: f64| EncodeSettings {
+        segment: SegmentOptions {
+            regions: RegionCount::Fixed(k),
+            ..settings.segment.clone()
+        },
+        simplify_tolerance: tolerance,
+        ..settings.clone()
+    };
+    // A probe of the better of `plain` and `weighted`, the files made at (k, tolerance):
+    // measured and reported.
+    let mut measure = |k: usize,
+                       tolerance: f64,
+                       plain: Checked,
+                       weighted: Option<Checked>,
+                       searched_again: bool,
+                       tried: &mut Vec<Probed>| {
+        let kept = match &weighted {
+            Some(w) if w.score < plain.score => w,
+            _ => &plain,
         };
-        // The search chooses the region count itself: no raising.
-        let encoded =
-            encode_checked(mesh, &s, MAX_SPLIT_ROUNDS, Fidelity::Smoothed, &mut |_| {})?.encoded;
-        let measured = measure_encoding(mesh, &encoded.bytes)?;
-        let bytes = store_measurement(&encoded, &measured)?;
+        let measured = measure_encoding(mesh, &kept.encoded.bytes)?;
+        let bytes = store_measurement(&kept.encoded, &measured)?;
         let p = Probe {
             regions: k,
             boundary_tolerance: tolerance,
             bytes: bytes.len(),
             rms: measured.rms / measured.diagonal.max(f64::MIN_POSITIVE),
+            clean: kept.score.0 == CLEAN,
+            searched_again,
         };
         report(&p);
-        tried.push((
-            p,
-            RateControlled {
-                encoded,
-                measured,
-                bytes,
-                probes: Vec::new(),
-            },
-        ));
-        Ok(p)
+        let kept = RateControlled {
+            encoded: kept.encoded.clone(),
+            measured,
+            bytes,
+            probes: Vec::new(),
+        };
+        tried.push(Probed {
+            probe: p,
+            plain,
+            weighted,
+            kept,
+        });
+        Ok::<Probe, EncodeMeshError>(p)
     };
-    let meets = |p: &Probe| match target {
-        Target::Rms(t) => p.rms <= t,
-        Target::MaxBytes(n) => p.bytes <= n,
+    // Each probe is a file at (k, tolerance) and, when it does not decode clean, the first
+    // of encode_mesh's searches, with each face's error weighted by its area: without it
+    // the search saw the duck at K = 64 decode 338 % of the diagonal off its source
+    // (regions far off; weighted, 0.22 %), and the horse within 0.5 % ended at K = 176
+    // with 9 799 bytes that did not decode clean (now 3 357 bytes, clean).
+    let mut probe = |k: usize, tolerance: f64, tried: &mut Vec<Probed>| {
+        if let Some(known) = tried
+            .iter()
+            .find(|t| t.probe.regions == k && t.probe.boundary_tolerance == tolerance)
+        {
+            return Ok::<Probe, EncodeMeshError>(known.probe);
+        }
+        // The search chooses the region count itself: no raising.
+        let at = settings_at(k, tolerance);
+        let plain = encode_checked(mesh, &at, MAX_SPLIT_ROUNDS, Fidelity::Smoothed, &mut |_| {})?;
+        let weighted = match area_weighted(&at) {
+            Some(weighted) if at.verify && plain.score.0 != CLEAN => search_again(
+                mesh,
+                &at,
+                &weighted,
+                MAX_REWEIGHTED_ROUNDS,
+                Fidelity::Smoothed,
+                &mut |_| {},
+            ),
+            _ => None,
+        };
+        measure(k, tolerance, plain, weighted, false, tried)
     };
+    let meets = |p: &Probe| target.is_met_by(p);
     // For an RMS target, "on the far side" is meeting it; for a budget, missing it.
     let beyond = |p: &Probe| match target {
         Target::Rms(_) => meets(p),
@@ -1619,14 +1749,33 @@ pub fn encode_to_target(
             probe(hi, tolerance * factor, &mut tried)?;
         }
     }
-    let probes: Vec<Probe> = tried.iter().map(|(p, _)| *p).collect();
-    let best = tried
-        .into_iter()
-        .filter(|(p, _)| meets(p))
-        .min_by(|(a, _), (b, _)| match target {
-            Target::Rms(_) => a.bytes.cmp(&b.bytes).then(a.rms.total_cmp(&b.rms)),
-            Target::MaxBytes(_) => a.rms.total_cmp(&b.rms).then(a.bytes.cmp(&b.bytes)),
-        });
+    // When the best probe that meets the target does not decode clean, its setting gets
+    // the searches encode_mesh makes for such a file (the count not raised), and that file
+    // is measured like a probe.
+    let probes: Vec<Probe> = tried.iter().map(|t| t.probe).collect();
+    if let Some(i) = probe_to_search_again(&probes, target) {
+        let Probed {
+            probe: p,
+            plain,
+            weighted,
+            ..
+        } = tried[i].clone();
+        let at = settings_at(p.regions, p.boundary_tolerance);
+        let searched = search_for_clean(mesh, &at, plain, weighted, false, &mut |_| {})?;
+        measure(
+            p.regions,
+            p.boundary_tolerance,
+            searched,
+            None,
+            true,
+            &mut tried,
+        )?;
+    }
+    let probes: Vec<Probe> = tried.iter().map(|t| t.probe).collect();
+    let best = chosen_probe(&probes, target).map(|i| {
+        let t = tried.swap_remove(i);
+        (t.probe, t.kept)
+    });
     match best {
         Some((_, mut chosen)) => {
             chosen.probes = probes;
@@ -1949,6 +2098,70 @@ mod tests {
             .sum();
         assert_eq!(kept, all);
         assert!(simplified < kept, "{simplified} of {kept}");
+    }
+    /// Rate control keeps a probe that decodes clean before one that does not, whatever
+    /// their sizes and errors, and among either the best for the target; it searches again
+    /// at the best probe that meets the target only when that one is not clean; a probe
+    /// that misses the target is never kept nor searched again.
+    #[test]
+    fn rate_control_keeps_a_clean_file_first_and_searches_again_at_a_better_dirty_one() {
+        let probe = |regions, bytes, rms, clean| Probe {
+            regions,
+            boundary_tolerance: 1e-3,
+            bytes,
+            rms,
+            clean,
+            searched_again: false,
+        };
+        // K = 6 is the best for both targets (the smallest file, the lowest error) but not
+        // clean; K = 9 is too large and too far.
+        let probes = [
+            probe(4, 1258, 0.0276, true),
+            probe(6, 1230, 0.0150, false),
+            probe(5, 1240, 0.0351, true),
+            probe(9, 1900, 0.0600, true),
+        ];
+        let budget = Target::MaxBytes(1500);
+        assert_eq!(probe_to_search_again(&probes, budget), Some(1));
+        assert_eq!(
+            chosen_probe(&probes, budget),
+            Some(0),
+            "the lower error, clean"
+        );
+        let error = Target::Rms(0.04);
+        assert_eq!(probe_to_search_again(&probes, error), Some(1));
+        assert_eq!(
+            chosen_probe(&probes, error),
+            Some(2),
+            "the smaller file, clean"
+        );
+        // Within 1.6 %, only the dirty K = 6 meets the target: kept, having been searched
+        // again.
+        let tight = Target::Rms(0.016);
+        assert_eq!(probe_to_search_again(&probes, tight), Some(1));
+        assert_eq!(chosen_probe(&probes, tight), Some(1));
+        // The search again made K = 6 clean: it is kept over every other.
+        let mut searched = probes.to_vec();
+        searched.push(Probe {
+            searched_again: true,
+            ..probe(6, 1219, 0.0116, true)
+        });
+        for target in [budget, error, tight] {
+            assert_eq!(chosen_probe(&searched, target), Some(4), "{target:?}");
+        }
+        // When the best probe is clean nothing is searched again, even with a dirty one
+        // beside it; and nothing meets a budget below every file.
+        let clean_best = [probe(4, 1258, 0.0276, false), probe(8, 1400, 0.0082, true)];
+        assert_eq!(probe_to_search_again(&clean_best, budget), None);
+        assert_eq!(chosen_probe(&clean_best, budget), Some(1));
+        assert_eq!(
+            probe_to_search_again(&clean_best, Target::MaxBytes(1000)),
+            None
+        );
+        assert_eq!(chosen_probe(&clean_best, Target::MaxBytes(1000)), None);
+        // Ties keep the earliest.
+        let twins = [probe(6, 1264, 0.0150, true), probe(6, 1264, 0.0150, true)];
+        assert_eq!(chosen_probe(&twins, budget), Some(0));
     }
 
     /// Which encoding is kept when none decodes clean: one that decodes over one that does

@@ -171,11 +171,13 @@ pub fn run(args: &EncodeArgs) -> Result<(), CliError> {
             let rc = encode_to_target(mesh, &settings, target, &mut |p: &Probe| {
                 if !quiet {
                     eprintln!(
-                        "  tried K = {:>3}, boundary tolerance {:.1e}: {} bytes, RMS {:.4}% of the diagonal",
+                        "  {} K = {:>3}, boundary tolerance {:.1e}: {} bytes, RMS {:.4}% of the diagonal{}",
+                        if p.searched_again { "searched again at" } else { "tried" },
                         p.regions,
                         p.boundary_tolerance,
                         p.bytes,
-                        100.0 * p.rms
+                        100.0 * p.rms,
+                        if p.clean { "" } else { ", not clean" }
                     );
                 }
             })?;
