@@ -2127,24 +2127,22 @@ mod tests {
             probe(9, 1900, 0.0600, true),
         ];
         let budget = Target::MaxBytes(1500);
-        assert_eq!(probe_to_search_again(&probes, budget), Some(1));
-        assert_eq!(
-            chosen_probe(&probes, budget),
-            Some(0),
-            "the lower error, clean"
-        );
         let error = Target::Rms(0.04);
-        assert_eq!(probe_to_search_again(&probes, error), Some(1));
-        assert_eq!(
-            chosen_probe(&probes, error),
-            Some(2),
-            "the smaller file, clean"
-        );
         // Within 1.6 %, only the dirty K = 6 meets the target: kept, having been searched
         // again.
         let tight = Target::Rms(0.016);
-        assert_eq!(probe_to_search_again(&probes, tight), Some(1));
-        assert_eq!(chosen_probe(&probes, tight), Some(1));
+        for (target, chosen, why) in [
+            (budget, 0, "the lower error, clean"),
+            (error, 2, "the smaller file, clean"),
+            (tight, 1, "the only one that meets the target"),
+        ] {
+            assert_eq!(
+                probe_to_search_again(&probes, target),
+                Some(1),
+                "{target:?}"
+            );
+            assert_eq!(chosen_probe(&probes, target), Some(chosen), "{why}");
+        }
         // The search again made K = 6 clean: it is kept over every other.
         let mut searched = probes.to_vec();
         searched.push(Probe {
