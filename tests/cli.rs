@@ -376,5 +376,18 @@ fn a_mesh_of_more_pieces_than_the_default_regions_encodes_with_one_more_region_e
     assert!((14..25).contains(&regions), "{v}");
     assert!(v["bytes"].as_u64().unwrap() <= budget, "{v}");
     assert!(v["rate_control_probes"].as_u64().unwrap() >= 2, "{v}");
+    // Each probe, in order; the file kept is one that fits.
+    let probes = v["rate_control"].as_array().unwrap();
+    assert_eq!(
+        probes.len() as u64,
+        v["rate_control_probes"].as_u64().unwrap()
+    );
+    assert!(
+        probes.iter().any(|p| p["bytes"] == v["bytes"]
+            && p["regions"].as_u64().is_some()
+            && p["rms_fraction"].as_f64() == Some(v["error"]["rms_fraction"].as_f64().unwrap())
+            && p["clean"].as_bool().is_some()),
+        "{v}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -101,7 +101,39 @@ struct EncodeReport {
     error: Option<ErrorReport>,
     /// Encodings rate control tried (0 without it).
     rate_control_probes: usize,
+    /// Those encodings, in order (empty without rate control).
+    rate_control: Vec<ProbeReport>,
     sections: Vec<SectionReport>,
+}
+
+/// One encoding rate control tried ([`ellip::encode::Probe`]).
+#[derive(Debug, Serialize)]
+struct ProbeReport {
+    /// Regions asked for.
+    regions: usize,
+    /// Boundary tolerance, as a fraction of the bounding-box diagonal.
+    boundary_tolerance: f64,
+    /// File size with the measurement stored.
+    bytes: usize,
+    /// Measured RMS error as a fraction of the diagonal.
+    rms_fraction: f64,
+    /// Whether the file decodes clean (or was not checked).
+    clean: bool,
+    /// Whether it is the further searches' file at an earlier probe's setting.
+    searched_again: bool,
+}
+
+impl From<&Probe> for ProbeReport {
+    fn from(p: &Probe) -> Self {
+        ProbeReport {
+            regions: p.regions,
+            boundary_tolerance: p.boundary_tolerance,
+            bytes: p.bytes,
+            rms_fraction: p.rms,
+            clean: p.clean,
+            searched_again: p.searched_again,
+        }
+    }
 }
 
 /// The measured error of the decoded file against the input, symmetric.
@@ -181,7 +213,7 @@ pub fn run(args: &EncodeArgs) -> Result<(), CliError> {
                     );
                 }
             })?;
-            (rc.encoded, rc.bytes, Some(rc.measured), rc.probes.len())
+            (rc.encoded, rc.bytes, Some(rc.measured), rc.probes)
         }
         None => {
             let bar = progress_bar(args.quiet, &settings.segment);
@@ -190,10 +222,10 @@ pub fn run(args: &EncodeArgs) -> Result<(), CliError> {
             if args.report {
                 let measured = measure_encoding(mesh, &encoded.bytes)?;
                 let bytes = store_measurement(&encoded, &measured)?;
-                (encoded, bytes, Some(measured), 0)
+                (encoded, bytes, Some(measured), Vec::new())
             } else {
                 let bytes = encoded.bytes.clone();
-                (encoded, bytes, None, 0)
+                (encoded, bytes, None, Vec::new())
             }
         }
     };
@@ -242,7 +274,8 @@ pub fn run(args: &EncodeArgs) -> Result<(), CliError> {
             hausdorff_fraction: m.hausdorff / m.diagonal,
             normal_deviation_degrees: m.normal_deviation,
         }),
-        rate_control_probes: probes,
+        rate_control_probes: probes.len(),
+        rate_control: probes.iter().map(ProbeReport::from).collect(),
         sections: summary
             .sections
             .iter()
