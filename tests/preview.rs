@@ -77,10 +77,28 @@ fn count_region_colours(image: &Image, k: usize) -> BTreeMap<usize, usize> {
     counts
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("ellip-preview-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+/// A test's own scratch directory, removed when the test passes (kept to look at when it
+/// fails).
+struct Scratch(PathBuf);
+
+impl Scratch {
+    fn new(test: &str) -> Scratch {
+        let dir = std::env::temp_dir().join(format!("ellip-preview-{test}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        Scratch(dir)
+    }
+
+    fn path(&self, name: &str) -> PathBuf {
+        self.0.join(name)
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        if !std::thread::panicking() {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
 }
 
 fn ellip(args: &[&str]) -> std::process::Output {
@@ -92,8 +110,9 @@ fn ellip(args: &[&str]) -> std::process::Output {
 
 #[test]
 fn a_mesh_gives_three_panels_of_the_asked_size_with_the_object_in_each() {
+    let scratch = Scratch::new("panels");
     let blob = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/meshes/blob3.obj");
-    let out = scratch("blob3.png");
+    let out = scratch.path("blob3.png");
     let args = [
         "preview",
         blob.to_str().unwrap(),
@@ -129,7 +148,7 @@ fn a_mesh_gives_three_panels_of_the_asked_size_with_the_object_in_each() {
         assert!((c - first).abs() < 0.05, "panel {panel}: {c} vs {first}");
     }
     // The same input, the same bytes (another process).
-    let again = scratch("blob3-again.png");
+    let again = scratch.path("blob3-again.png");
     let mut args2 = args;
     args2[7] = again.to_str().unwrap();
     assert!(ellip(&args2).status.success());
@@ -138,9 +157,10 @@ fn a_mesh_gives_three_panels_of_the_asked_size_with_the_object_in_each() {
 
 #[test]
 fn an_ellip_file_gives_two_panels() {
+    let scratch = Scratch::new("ellip");
     let blob = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/meshes/blob2.obj");
-    let file = scratch("blob2.ellip");
-    let out = scratch("blob2.png");
+    let file = scratch.path("blob2.ellip");
+    let out = scratch.path("blob2.png");
     let encoded = ellip(&[
         "encode",
         blob.to_str().unwrap(),
@@ -174,9 +194,10 @@ fn an_ellip_file_gives_two_panels() {
 
 #[test]
 fn bad_outputs_and_sizes_are_refused_before_any_work() {
+    let scratch = Scratch::new("refused");
     let blob = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/meshes/blob1.obj");
     let blob = blob.to_str().unwrap();
-    let png = scratch("refused.png");
+    let png = scratch.path("refused.png");
     let png = png.to_str().unwrap();
     for (args, says) in [
         (vec!["preview", blob, "-o", blob], "PNG"),
@@ -199,7 +220,7 @@ fn bad_outputs_and_sizes_are_refused_before_any_work() {
     }
     assert!(!Path::new(png).exists());
     // Named .png, the input itself is still refused.
-    let copy = scratch("input.png");
+    let copy = scratch.path("input.png");
     std::fs::copy(blob, &copy).unwrap();
     let c = copy.to_str().unwrap();
     let run = ellip(&["preview", c, "-o", c]);

@@ -1202,6 +1202,7 @@ fn ellip_decode_can_turn_subdivision_off() {
         written.push(std::fs::read(&output).unwrap());
     }
     assert_ne!(written[0], written[1]);
+    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// A band whose outer loop quantisation collapsed (a tiny cap's boundary, three points at
@@ -1405,4 +1406,5 @@ fn regions_no_attempt_can_mesh_are_left_out_as_holes() {
     let refused = ellip(&[&args[..], &["--no-holes"]].concat());
     assert!(!refused.status.success());
     assert!(String::from_utf8_lossy(&refused.stderr).contains("region"));
+    std::fs::remove_dir_all(&dir).ok();
 }
