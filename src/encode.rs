@@ -435,7 +435,7 @@ fn encode_checked(
         }
         let score = verdict.score();
         let rank = score.0;
-        let (blamed, problem) = verdict.blamed_and_problem();
+        let (mut blamed, problem) = verdict.blamed_and_problem();
         verification.problem = problem;
         let done = verification.problem.is_none();
         let candidate = Encoded::new(
@@ -461,10 +461,34 @@ fn encode_checked(
         {
             continue;
         }
+        // A blamed region too small for an ellipsoid whose fit is turned against its own
+        // faces gets the sphere tangent to it instead, and is not mended otherwise this
+        // round: a region of one or two faces is decoded as it is, flipped on such a needle,
+        // and neither dissolving nor splitting it mended Stanford's dragon at `res4`.
+        let faces = segmentation.faces_by_region();
+        let mut refitted = false;
+        blamed.retain(|split| {
+            let r = split.region as usize;
+            let (Some(own), Some(proxy)) = (faces.get(r), segmentation.proxies.get(r)) else {
+                return true;
+            };
+            let Some((sphere, error)) = metric.tangent_in_place_of_needle(own, proxy) else {
+                return true;
+            };
+            segmentation.proxies[r] = sphere;
+            if let Some(e) = segmentation.region_errors.get_mut(r) {
+                segmentation.total_error += error - *e;
+                *e = error;
+            }
+            refitted = true;
+            false
+        });
+        if refitted && blamed.is_empty() {
+            continue;
+        }
         // Small regions are dissolved into their neighbours (splitting them would only make
         // smaller ones, whose fits go wilder still); the others are split, within the budget
         // (hosts need at least two faces).
-        let faces = segmentation.faces_by_region();
         let small = |r: u32| {
             faces.get(r as usize).map_or(0, Vec::len) as f64
                 <= SMALL_REGION_SHARE * mesh.face_count() as f64 / requested.max(1) as f64
@@ -500,6 +524,9 @@ fn encode_checked(
                     .take(room)
                     .collect();
                 if hosts.is_empty() {
+                    if refitted {
+                        continue;
+                    }
                     break;
                 }
                 split_regions(

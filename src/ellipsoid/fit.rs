@@ -39,7 +39,9 @@
 //!   parameters (a scan's fins and loose triangles), or a flat region that few between
 //!   creases (a cube's triangle), leaves an ellipsoid free between its samples; the
 //!   segmentation fits it with a sphere or a plane-like spheroid tangent to it instead
-//!   ([`fit_tangent_sphere`]).
+//!   ([`fit_tangent_sphere`]); the encoder's mending does so for any other region this
+//!   small that its check blames and whose ellipsoid is turned against one of its faces
+//!   ([`crate::segment::EllipsoidMetric::tangent_in_place_of_needle`]).
 //! - **Large regions.** The iterations use at most [`FitOptions::max_solver_points`] samples,
 //!   picked with a fixed stride and reweighted so the total weight is unchanged; the
 //!   returned error is then evaluated on every sample at full resolution.
@@ -332,8 +334,11 @@ pub const MIN_ELLIPSOID_SAMPLES: usize = 9;
 /// when the normals cancel.
 ///
 /// For the specks of a scan, pieces of one or two triangles (see
-/// [`crate::segment::proxy::speck_faces`]), and the facets of a low-poly part (a cube's
-/// triangle): so few samples leave an ellipsoid free between them. Matched to a single
+/// [`crate::segment::proxy::speck_faces`]), the facets of a low-poly part (a cube's
+/// triangle), and any other region this small whose ellipsoid turned against one of its
+/// faces made the decoder's check blame it
+/// ([`crate::segment::EllipsoidMetric::tangent_in_place_of_needle`]): so few samples leave an
+/// ellipsoid free between them. Matched to a single
 /// triangle's corners and normals, [`fit_ellipsoid`] returns needles a hundredth of the
 /// diagonal thick with the triangle inside, whose normal at the triangle's centre points
 /// anywhere; a tangent sphere's normal there is the patch's own. A facet's corners lie on
