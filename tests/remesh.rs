@@ -1272,9 +1272,11 @@ fn a_region_whose_outer_loop_collapsed_keeps_its_other_loops() {
 }
 
 /// Two separate pieces of a surface whose borders lie at the same positions (crossed cards
-/// whose corners quantisation brought together: Wuson's whiskers in assimp's test models)
-/// stay apart: two domes over one equator, each region on the left of its border loop, so
-/// that glued, every equator edge would be run the same way by both its faces.
+/// whose corners quantisation brought together: Wuson's whiskers in assimp's test models),
+/// or are the same points (two fins of a scan on one non-manifold edge, each a piece of its
+/// own: Stanford's dragon at `res4`), stay apart: two domes over one equator, each region on
+/// the left of its border loop, so that glued, every equator edge would be run the same way
+/// by both its faces.
 #[test]
 fn separate_pieces_whose_borders_meet_stay_apart() {
     use ellip::ellipsoid::Ellipsoid;
@@ -1297,33 +1299,44 @@ fn separate_pieces_whose_borders_meet_stay_apart() {
         left,
         right: Side::Border,
     };
-    let cycle = |arc: u32| {
-        vec![Cycle {
-            arcs: vec![ArcRef {
-                arc,
-                reversed: false,
-            }],
-            outer: true,
-        }]
-    };
-    let rep = Representation {
-        ellipsoids: vec![Ellipsoid::sphere(DVec3::ZERO, 1.0), flat],
-        points: [equator.clone(), equator].concat(),
-        arcs: vec![border(0, 0), border(n, 1)],
-        cycles: vec![cycle(0), cycle(1)],
-        metadata: Metadata::default(),
-    };
-    rep.validate().unwrap();
-    let out = remesh(&rep, &options(1000, Scheme::Adaptive)).unwrap();
-    assert_clean(&out, "two domes");
-    assert!(out.check.consistently_oriented && out.check.manifold);
-    // Each dome keeps its own border loop (the equator's points and those refinement put
-    // between them), sharing no vertex with the other.
-    assert_eq!(out.check.border_loops, 2);
-    let loops = out.mesh.topology().boundary_loops();
-    assert_eq!(loops.len(), 2);
-    assert!(loops[0].len() >= n as usize && loops[0].len() == loops[1].len());
-    assert!(loops[0].iter().all(|v| !loops[1].contains(v)));
+    for shared in [false, true] {
+        let cycle = |arc: u32| {
+            vec![Cycle {
+                arcs: vec![ArcRef {
+                    arc,
+                    reversed: false,
+                }],
+                outer: true,
+            }]
+        };
+        let (points, second) = if shared {
+            (equator.clone(), 0)
+        } else {
+            ([equator.clone(), equator.clone()].concat(), n)
+        };
+        let rep = Representation {
+            ellipsoids: vec![Ellipsoid::sphere(DVec3::ZERO, 1.0), flat],
+            points,
+            arcs: vec![border(0, 0), border(second, 1)],
+            cycles: vec![cycle(0), cycle(1)],
+            metadata: Metadata::default(),
+        };
+        rep.validate().unwrap();
+        let out = remesh(&rep, &options(1000, Scheme::Adaptive)).unwrap();
+        let what = format!("two domes, points shared: {shared}");
+        assert_clean(&out, &what);
+        assert!(
+            out.check.consistently_oriented && out.check.manifold,
+            "{what}"
+        );
+        // Each dome keeps its own border loop (the equator's points and those refinement
+        // put between them), sharing no vertex with the other.
+        assert_eq!(out.check.border_loops, 2, "{what}");
+        let loops = out.mesh.topology().boundary_loops();
+        assert_eq!(loops.len(), 2, "{what}");
+        assert!(loops[0].len() >= n as usize && loops[0].len() == loops[1].len());
+        assert!(loops[0].iter().all(|v| !loops[1].contains(v)), "{what}");
+    }
 }
 
 /// Untangling drops boundary points until a region's loops stop crossing in its chart; where

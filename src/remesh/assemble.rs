@@ -1104,11 +1104,13 @@ fn whole_regions(rep: &Representation) -> impl Iterator<Item = usize> + '_ {
 /// surface ([`surface_pieces`]). Separate pieces whose borders quantisation brought
 /// together stay apart, as they were in the source: glued, two such borders became one edge
 /// run the same way by both its faces (Wuson, a toy from assimp's test models whose
-/// whiskers are crossed cards, decoded not consistently oriented).
+/// whiskers are crossed cards, decoded not consistently oriented). So do points the pieces
+/// share: each piece has its own vertex at one ([`Pool::id`]).
 struct Pool<'a> {
     refined: &'a [DVec3],
-    /// Refined point index → vertex id (u32::MAX: not yet used).
-    id_of: Vec<u32>,
+    /// Refined point index → the vertex id it was first given and its piece of the surface
+    /// (u32::MAX: not yet used).
+    id_of: Vec<(u32, u32)>,
     /// (piece of the surface, position) → vertex id.
     by_position: HashMap<(u32, [u64; 3]), u32>,
     positions: Vec<DVec3>,
@@ -1118,24 +1120,28 @@ impl<'a> Pool<'a> {
     fn new(refined: &'a [DVec3]) -> Pool<'a> {
         Pool {
             refined,
-            id_of: vec![u32::MAX; refined.len()],
+            id_of: vec![(u32::MAX, u32::MAX); refined.len()],
             by_position: HashMap::new(),
             positions: Vec::new(),
         }
     }
 
-    /// The vertex of refined point `i` (indices come from [`refine_arcs`], so in range), on
-    /// piece `piece` of the surface if it is new.
+    /// The vertex of refined point `i` (indices come from [`refine_arcs`], so in range) on
+    /// piece `piece` of the surface. A point that two pieces share (two fins of a scan on
+    /// one non-manifold edge, each a piece of its own) is a vertex on each: joined, the fins
+    /// of Stanford's dragon at `res4` made an edge run the same way by both its faces.
     fn id(&mut self, i: u32, piece: u32) -> u32 {
         match self.id_of.get(i as usize) {
-            Some(&id) if id != u32::MAX => id,
-            Some(_) => {
+            Some(&(id, on)) if id != u32::MAX && on == piece => id,
+            Some(&(id, _)) => {
                 let p = self.refined.get(i as usize).copied().unwrap_or_default();
-                let id = self.add(p, piece);
-                if let Some(slot) = self.id_of.get_mut(i as usize) {
-                    *slot = id;
+                let new = self.add(p, piece);
+                if id == u32::MAX {
+                    if let Some(slot) = self.id_of.get_mut(i as usize) {
+                        *slot = (new, piece);
+                    }
                 }
-                id
+                new
             }
             None => 0,
         }
@@ -1160,7 +1166,7 @@ impl<'a> Pool<'a> {
 
 /// Per region, the piece of the surface it lies on: the smallest region reached from it
 /// across arcs between two regions. Two pieces of the source that touch only at a vertex
-/// count as two (that vertex is one pool point either way).
+/// or along border edges count as two, each with a vertex of its own there ([`Pool`]).
 fn surface_pieces(rep: &Representation) -> Vec<u32> {
     let n = rep.region_count();
     let mut parent: Vec<u32> = (0..n as u32).collect();
