@@ -95,6 +95,14 @@ impl NormalSide {
         let x = self.to_local * (p - self.center);
         (self.to_local * v).dot(x * self.weights)
     }
+
+    /// [`NormalSide::along`] for a triangle: its area vector (corners counter-clockwise seen
+    /// from the side it faces) at its centroid. Negative when the triangle is turned against
+    /// the surface, the test [`crate::remesh::assemble::check_mesh`] makes of every triangle.
+    #[inline]
+    pub fn facing(&self, [a, b, c]: [DVec3; 3]) -> f64 {
+        self.along((a + b + c) / 3.0, (b - a).cross(c - a))
+    }
 }
 
 /// Below this fraction of the smallest radius a point counts as the centre itself, where the

@@ -416,8 +416,8 @@ impl RegionCdt {
     /// against the region's ellipsoid: its normal, oriented as [`RegionCdt::finish`] will
     /// orient it, against the ellipsoid's signed normal at its centroid (the test
     /// [`super::assemble::check_mesh`] applies to the assembled mesh).
-    fn is_turned(&self, [a, b, c]: [DVec3; 3]) -> bool {
-        let facing = self.side.along((a + b + c) / 3.0, (b - a).cross(c - a));
+    fn is_turned(&self, corners: [DVec3; 3]) -> bool {
+        let facing = self.side.facing(corners);
         if self.flip {
             facing > 0.0
         } else {

@@ -378,7 +378,7 @@ impl EllipsoidMetric {
             let Some([Some(a), Some(b), Some(c)]) = corners else {
                 return false;
             };
-            side.along((a + b + c) / 3.0, (b - a).cross(c - a)) < 0.0
+            side.facing([a, b, c]) < 0.0
         })
     }
 
