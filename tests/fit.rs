@@ -739,3 +739,63 @@ fn octants_of_shared_meshes_fit_finitely() {
         eprintln!("{}: 8 octants fit", path.display());
     }
 }
+
+/// The corners of every triangle of a mesh.
+fn triangles(mesh: &ellip::Mesh) -> Vec<[DVec3; 3]> {
+    (0..mesh.face_count()).map(|f| mesh.corners(f)).collect()
+}
+
+#[test]
+fn a_closed_box_gets_the_ellipsoid_of_its_solid() {
+    use ellip::ellipsoid::fit::fit_solid;
+    // A plate of 60 × 5 × 145 (one of assimp's `regr01` boxes), turned and moved.
+    let half = DVec3::new(30.0, 2.5, 72.5);
+    let rotation = DQuat::from_euler(glam::EulerRot::XYZ, 0.3, -1.1, 2.0);
+    let shift = DVec3::new(100.0, -40.0, 7.0);
+    let plate = ellip::synth::shapes::cube(1.0, 1)
+        .map_positions(|p| rotation * (2.0 * p * half) + shift)
+        .unwrap();
+    assert_eq!(plate.vertex_count(), 8);
+    let e = fit_solid(&triangles(&plate)).unwrap();
+    // A solid ellipsoid's second moments are r²/5 along its axes, a box's a²/3: radii
+    // √(5/3)·a, then scaled to the box's volume 8abc.
+    let shape = (5.0f64 / 3.0).sqrt();
+    let k = shape * (8.0 / (4.0 / 3.0 * std::f64::consts::PI * shape.powi(3))).cbrt();
+    assert!((k - 1.2407).abs() < 1e-4, "{k}");
+    assert_eq!(e.sign, Sign::Positive);
+    assert!(e.center.distance(shift) < 1e-9 * 150.0, "{:?}", e.center);
+    assert!((e.volume() - 8.0 * half.x * half.y * half.z).abs() < 1e-9 * e.volume());
+    // Each of its axes is a box axis, with the radius k·(that half-extent).
+    let axes = DMat3::from_quat(e.rotation);
+    for (i, radius) in e.radii.to_array().into_iter().enumerate() {
+        let axis = axes.col(i);
+        let (j, along) = (0..3)
+            .map(|j| (j, (rotation * DVec3::AXES[j]).dot(axis).abs()))
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .unwrap();
+        assert!(along > 1.0 - 1e-9, "axis {i}: {along}");
+        assert!(
+            (radius - k * half[j]).abs() < 1e-9 * half[j],
+            "axis {i}: {radius}"
+        );
+    }
+    // Faces turned inward make a void: the same ellipsoid, negative.
+    let (positions, faces) = plate.clone().into_parts();
+    let inward = ellip::Mesh::new(
+        positions,
+        faces.iter().map(|f| [f[0], f[2], f[1]]).collect(),
+    )
+    .unwrap();
+    let void = fit_solid(&triangles(&inward)).unwrap();
+    assert_eq!(void.sign, Sign::Negative);
+    assert!((void.radii - e.radii).length() < 1e-9 * 150.0);
+    // A sphere's fine mesh gives the sphere, within its polygons' shortfall.
+    let sphere = fit_solid(&triangles(&ellip::synth::shapes::icosphere(2.0, 4))).unwrap();
+    for r in sphere.radii.to_array() {
+        assert!((r - 2.0).abs() < 0.01, "{:?}", sphere.radii);
+    }
+    // No volume, no ellipsoid: a triangle and its back.
+    let a = [DVec3::ZERO, DVec3::X, DVec3::Y];
+    assert_eq!(fit_solid(&[a, [a[0], a[2], a[1]]]), None);
+    assert_eq!(fit_solid(&[]), None);
+}
