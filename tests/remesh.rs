@@ -457,6 +457,42 @@ fn a_sphere_only_file_gives_a_closed_sphere() {
     }
 }
 
+/// Whole ellipsoids at the smallest budgets: three thin boxes, each a piece of eight
+/// vertices encoded as one region (the ellipsoid of its solid, radii down to 1.24), decoded
+/// at 10 to 100 vertices. Each half of a whole ellipsoid gets its pole first: with only
+/// its equator, a half was the equator's polygon, and both halves used the same chords
+/// (edges of four faces): at 24 to 60 vertices the three decoded not manifold, with up to
+/// 4 flipped triangles, and one alone at 8 vertices with 2 flipped.
+#[test]
+fn thin_whole_ellipsoids_decode_clean_at_the_smallest_budgets() {
+    let (mut positions, mut faces) = (Vec::new(), Vec::new());
+    for (half, centre) in [
+        (DVec3::new(30.0, 2.5, 72.5), DVec3::ZERO),
+        (DVec3::new(60.0, 15.0, 2.0), DVec3::new(0.0, 100.0, 0.0)),
+        (DVec3::new(140.0, 8.0, 1.0), DVec3::new(200.0, 0.0, 0.0)),
+    ] {
+        let cube = ellip::synth::shapes::cube(1.0, 1)
+            .map_positions(|p| 2.0 * p * half + centre)
+            .unwrap();
+        let first = positions.len() as u32;
+        positions.extend_from_slice(cube.positions());
+        faces.extend(cube.faces().iter().map(|f| f.map(|v| v + first)));
+    }
+    let mesh = Mesh::new(positions, faces).unwrap();
+    let (_, rep) = encode_unchecked(&mesh, 3);
+    assert!(rep.cycles.iter().all(Vec::is_empty), "three whole regions");
+    for budget in [10, 24, 30, 40, 60, 100] {
+        let out = remesh(&rep, &by_vertex_addition(budget)).unwrap();
+        let c = out.check;
+        assert_eq!((c.flipped, c.degenerate), (0, 0), "{budget}: {c:?}");
+        assert!(
+            c.closed && c.manifold && c.consistently_oriented,
+            "{budget}: {c:?}"
+        );
+        assert_eq!(out.attempts, 1, "{budget}");
+    }
+}
+
 #[test]
 fn an_open_hemisphere_keeps_one_border_loop() {
     let mesh = source("hemisphere.obj");

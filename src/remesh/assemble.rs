@@ -177,7 +177,8 @@ fn prepare(rep: &Representation, options: &RemeshOptions) -> Result<Prepared, Re
     }
     let tolerance = options.tolerance.map(|t| t * diagonal);
 
-    let minimum = rep.points.len() + MIN_EQUATOR_POINTS * whole_regions(rep).count();
+    // Each whole ellipsoid: its equator and its two poles (`split_whole`).
+    let minimum = rep.points.len() + (MIN_EQUATOR_POINTS + 2) * whole_regions(rep).count();
     if minimum > options.max_vertices {
         return Err(RemeshError::TooManyVertices {
             needed: minimum,
@@ -1247,6 +1248,9 @@ struct Piece {
     /// Its boundary-only adaptive triangulation, once [`settle_charts`] built it (taken by
     /// [`triangulate_adaptive`], which would otherwise build the same again).
     start: Option<AdaptiveTriangulation>,
+    /// For a whole ellipsoid's half ([`split_whole`]): its pole, its first interior vertex
+    /// ([`AdaptiveTriangulation::insert_at`]).
+    pole: Option<DVec3>,
 }
 
 impl Piece {
@@ -1282,6 +1286,7 @@ impl Piece {
             global,
             area,
             start: None,
+            pole: None,
         }
     }
 
@@ -1354,6 +1359,15 @@ impl Piece {
         })
     }
 
+    /// Its boundary-only adaptive triangulation, with its pole when it has one.
+    fn start(&self, min_spacing: f64) -> Result<AdaptiveTriangulation, RemeshError> {
+        let mut start = AdaptiveTriangulation::new(&self.input(), min_spacing)?;
+        if let Some(pole) = self.pole {
+            start.insert_at(pole);
+        }
+        Ok(start)
+    }
+
     fn input(&self) -> RegionInput<'_> {
         RegionInput {
             region: self.region,
@@ -1377,7 +1391,7 @@ fn settle_charts(
 ) -> Result<(), RemeshError> {
     let min_spacing = min_spacing(spacing);
     for piece in pieces.iter_mut() {
-        let error = match AdaptiveTriangulation::new(&piece.input(), min_spacing) {
+        let error = match piece.start(min_spacing) {
             Ok(start) => {
                 piece.start = Some(start);
                 continue;
@@ -1390,7 +1404,7 @@ fn settle_charts(
             .and_then(|e| piece.view_from_beneath(e))
             .map(|p| p.with_offsets(spacing));
         let started = other.and_then(|mut other| {
-            let start = AdaptiveTriangulation::new(&other.input(), min_spacing).ok()?;
+            let start = other.start(min_spacing).ok()?;
             other.start = Some(start);
             Some(other)
         });
@@ -1459,7 +1473,8 @@ fn projection_onto(
 }
 
 /// A whole ellipsoid cut along its local equator into two halves sharing the equator's
-/// points, each in its own chart (whose pole is then the other half's pole).
+/// points, each in its own chart (whose pole is then the other half's pole) and with its
+/// own pole as its first interior vertex ([`Piece::start`]).
 fn split_whole(
     region: u32,
     e: &Ellipsoid,
@@ -1503,18 +1518,21 @@ fn split_whole(
         crate::ellipsoid::Sign::Positive => (ring, reversed),
         crate::ellipsoid::Sign::Negative => (reversed, ring),
     };
-    let half = |lp: Vec<u32>| -> Result<Piece, RemeshError> {
+    let half = |lp: Vec<u32>, pole: DVec3| -> Result<Piece, RemeshError> {
         let points: Vec<DVec3> = lp.iter().map(|&v| pool.position(v)).collect();
         let chart = RegionChart::new(region, e, &[points])?;
-        Ok(Piece::new(
-            region,
-            RegionSurface::new(chart),
-            &[lp],
-            &pool.positions,
-            0.0,
-        ))
+        Ok(Piece {
+            pole: Some(e.from_unit_sphere(pole)),
+            ..Piece::new(
+                region,
+                RegionSurface::new(chart),
+                &[lp],
+                &pool.positions,
+                0.0,
+            )
+        })
     };
-    Ok([half(north_loop)?, half(south_loop)?])
+    Ok([half(north_loop, DVec3::Z)?, half(south_loop, DVec3::NEG_Z)?])
 }
 
 /// The minimum spacing of vertex addition for a target edge length `spacing`: a quarter of
@@ -1539,7 +1557,7 @@ fn triangulate_adaptive(
         .iter_mut()
         .map(|piece| match piece.start.take() {
             Some(start) => Ok(start),
-            None => AdaptiveTriangulation::new(&piece.input(), min_spacing(spacing)),
+            None => piece.start(min_spacing(spacing)),
         })
         .collect::<Result<Vec<_>, _>>()?;
     let worst_of = |tris: &[AdaptiveTriangulation]| -> BinaryHeap<Worst> {
@@ -1611,7 +1629,7 @@ fn mend_curved_splits(
     if !curved || mesh.turned == 0 {
         return Ok(mesh);
     }
-    let mut by_length = AdaptiveTriangulation::new(&piece.input(), min_spacing)?;
+    let mut by_length = piece.start(min_spacing)?;
     by_length.judge_by_length();
     while by_length.added() < added && by_length.insert_worst() {}
     let again = by_length.finish();

@@ -7,6 +7,7 @@
 //! AdaptiveTriangulation::new(&RegionInput, min_spacing) -> Result<Self, RemeshError>
 //!     .worst_error() -> Option<f64>   // distance of the worst face centre from the surface
 //!     .insert_worst() -> bool         // false when no candidate is left
+//!     .insert_at(point) -> bool       // a given point first (a whole ellipsoid's pole)
 //!     .added() -> usize               // interior vertices inserted so far
 //!     .finish() -> RegionMesh
 //! triangulate_parametric(&RegionInput, interior_vertices, min_spacing) -> Result<RegionMesh, RemeshError>
@@ -807,18 +808,59 @@ impl AdaptiveTriangulation {
                 continue;
             }
             self.curved_splits |= verdict == Verdict::SplitCurved;
-            let star = std::mem::take(&mut self.inner.star);
-            for &face in &star {
-                if let Some(version) = self.versions.get_mut(face.index()) {
-                    *version = version.wrapping_add(1);
-                }
-                self.push_face(face);
-            }
-            self.inner.star = star;
-            self.drop_stale_top();
+            self.requeue_star();
             return true;
         }
         false
+    }
+
+    /// Inserts the surface point at the chart position of `point` (model units, on or near
+    /// the region's ellipsoid) as an interior vertex, when that position lies strictly
+    /// inside an inside face; returns whether it did. For a whole ellipsoid's half
+    /// (`assemble`'s `split_whole`), its pole, before any other: without it, a half given
+    /// no vertex of its own is its equator's polygon, and both halves' polygons use the
+    /// same chords (every one an edge of four faces, flat across the ellipsoid).
+    pub fn insert_at(&mut self, point: DVec3) -> bool {
+        let plane = self.inner.surface.chart.to_plane(point);
+        if !is_valid_plane_point(plane) {
+            return false;
+        }
+        let q = to_point(plane);
+        let spade::PositionInTriangulation::OnFace(face) = self.inner.cdt.locate(q) else {
+            return false;
+        };
+        let face = self.inner.cdt.face(face);
+        let strictly_inside = face
+            .adjacent_edges()
+            .iter()
+            .all(|e| e.side_query(q).is_on_left_side());
+        if !(*face.data() && strictly_inside) {
+            return false;
+        }
+        let hint = face.vertices()[0].fix();
+        let lifted = self
+            .inner
+            .surface
+            .point_height_and_clearance(plane, |_| f64::NEG_INFINITY);
+        if self.inner.insert_interior(plane, lifted, hint).is_none() {
+            return false;
+        }
+        self.requeue_star();
+        true
+    }
+
+    /// After an insertion: marks the faces around the new vertex remade
+    /// ([`Self::is_current`]) and pushes their candidates.
+    fn requeue_star(&mut self) {
+        let star = std::mem::take(&mut self.inner.star);
+        for &face in &star {
+            if let Some(version) = self.versions.get_mut(face.index()) {
+                *version = version.wrapping_add(1);
+            }
+            self.push_face(face);
+        }
+        self.inner.star = star;
+        self.drop_stale_top();
     }
 
     /// Sets the minimum spacing (see [`AdaptiveTriangulation::new`]) and makes every inside
