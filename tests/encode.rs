@@ -646,26 +646,6 @@ fn a_cube_decodes_as_itself() {
     }
 }
 
-/// Three boxes of a CAD assembly (two of assimp's `regr01` plates and a flat bar), each a
-/// piece of eight vertices, as one mesh.
-fn three_boxes() -> (Mesh, Vec<(DVec3, DVec3)>) {
-    let boxes = [
-        (DVec3::new(30.0, 2.5, 72.5), DVec3::ZERO),
-        (DVec3::new(60.0, 15.0, 2.0), DVec3::new(0.0, 100.0, 0.0)),
-        (DVec3::new(140.0, 8.0, 1.0), DVec3::new(200.0, 0.0, 0.0)),
-    ];
-    let (mut positions, mut faces) = (Vec::new(), Vec::new());
-    for &(half, centre) in &boxes {
-        let cube = ellip::synth::shapes::cube(1.0, 1)
-            .map_positions(|p| 2.0 * p * half + centre)
-            .unwrap();
-        let first = positions.len() as u32;
-        positions.extend_from_slice(cube.positions());
-        faces.extend(cube.faces().iter().map(|f| f.map(|v| v + first)));
-    }
-    (Mesh::new(positions, faces).unwrap(), boxes.to_vec())
-}
-
 /// A closed piece too small for its vertices to determine an ellipsoid, one region whole,
 /// is decoded as its whole ellipsoid: the one of its solid (`ellipsoid::fit::fit_solid`,
 /// radii 1.24 times the half-extents of a box), not what its eight corners leave free. Even
@@ -674,7 +654,7 @@ fn three_boxes() -> (Mesh, Vec<(DVec3, DVec3)>) {
 /// vertices, 0.72 % now.
 #[test]
 fn small_closed_pieces_decode_as_the_ellipsoids_of_their_solids() {
-    let (mesh, boxes) = three_boxes();
+    let (mesh, boxes) = common::three_boxes();
     let settings = EncodeSettings {
         verify: false,
         ..settings(3)

@@ -465,20 +465,7 @@ fn a_sphere_only_file_gives_a_closed_sphere() {
 /// 4 flipped triangles, and one alone at 8 vertices with 2 flipped.
 #[test]
 fn thin_whole_ellipsoids_decode_clean_at_the_smallest_budgets() {
-    let (mut positions, mut faces) = (Vec::new(), Vec::new());
-    for (half, centre) in [
-        (DVec3::new(30.0, 2.5, 72.5), DVec3::ZERO),
-        (DVec3::new(60.0, 15.0, 2.0), DVec3::new(0.0, 100.0, 0.0)),
-        (DVec3::new(140.0, 8.0, 1.0), DVec3::new(200.0, 0.0, 0.0)),
-    ] {
-        let cube = ellip::synth::shapes::cube(1.0, 1)
-            .map_positions(|p| 2.0 * p * half + centre)
-            .unwrap();
-        let first = positions.len() as u32;
-        positions.extend_from_slice(cube.positions());
-        faces.extend(cube.faces().iter().map(|f| f.map(|v| v + first)));
-    }
-    let mesh = Mesh::new(positions, faces).unwrap();
+    let (mesh, _) = common::three_boxes();
     let (_, rep) = encode_unchecked(&mesh, 3);
     assert!(rep.cycles.iter().all(Vec::is_empty), "three whole regions");
     for budget in [10, 24, 30, 40, 60, 100] {

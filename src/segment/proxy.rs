@@ -174,20 +174,26 @@ impl SmallSolids {
         let topology = mesh.topology();
         let labels = topology.face_components();
         let n = topology.component_count();
-        // Per piece: its faces, and its vertices up to one too many for a small one.
-        let mut faces: Vec<Vec<usize>> = vec![Vec::new(); n];
+        // Per piece: its vertices, up to one too many for a small one; then the faces of
+        // the small pieces.
         let mut vertices: Vec<Vec<u32>> = vec![Vec::new(); n];
-        for (f, (&c, face)) in labels.iter().zip(mesh.faces()).enumerate() {
-            let (Some(list), Some(seen)) =
-                (faces.get_mut(c as usize), vertices.get_mut(c as usize))
-            else {
+        for (&c, face) in labels.iter().zip(mesh.faces()) {
+            let Some(seen) = vertices.get_mut(c as usize) else {
                 continue;
             };
-            list.push(f);
             for &v in face {
                 if seen.len() < MIN_ELLIPSOID_SAMPLES && !seen.contains(&v) {
                     seen.push(v);
                 }
+            }
+        }
+        let mut faces: Vec<Vec<usize>> = vec![Vec::new(); n];
+        for (f, &c) in labels.iter().enumerate() {
+            let small = vertices
+                .get(c as usize)
+                .is_some_and(|seen| seen.len() < MIN_ELLIPSOID_SAMPLES);
+            if let (true, Some(list)) = (small, faces.get_mut(c as usize)) {
+                list.push(f);
             }
         }
         let solid = |(list, seen): (&Vec<usize>, &Vec<u32>)| {

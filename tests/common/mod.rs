@@ -77,3 +77,24 @@ pub fn run_validator(files: &[PathBuf]) -> (bool, String) {
     eprintln!("{}", String::from_utf8_lossy(&out.stderr));
     (out.status.success(), stdout)
 }
+
+/// Three thin boxes of a CAD assembly (two plates of assimp's `regr01` and a flat bar), each
+/// a closed piece of eight vertices, as one mesh; with each box's half-extents and centre.
+pub fn three_boxes() -> (ellip::Mesh, Vec<(glam::DVec3, glam::DVec3)>) {
+    use glam::DVec3;
+    let boxes = vec![
+        (DVec3::new(30.0, 2.5, 72.5), DVec3::ZERO),
+        (DVec3::new(60.0, 15.0, 2.0), DVec3::new(0.0, 100.0, 0.0)),
+        (DVec3::new(140.0, 8.0, 1.0), DVec3::new(200.0, 0.0, 0.0)),
+    ];
+    let (mut positions, mut faces) = (Vec::new(), Vec::new());
+    for &(half, centre) in &boxes {
+        let cube = ellip::synth::shapes::cube(1.0, 1)
+            .map_positions(|p| 2.0 * p * half + centre)
+            .unwrap();
+        let first = positions.len() as u32;
+        positions.extend_from_slice(cube.positions());
+        faces.extend(cube.faces().iter().map(|f| f.map(|v| v + first)));
+    }
+    (ellip::Mesh::new(positions, faces).unwrap(), boxes)
+}
