@@ -459,24 +459,31 @@ fn a_sphere_only_file_gives_a_closed_sphere() {
 
 /// Whole ellipsoids at the smallest budgets: three thin boxes, each a piece of eight
 /// vertices encoded as one region (the ellipsoid of its solid, radii down to 1.24), decoded
-/// at 10 to 100 vertices. Each half of a whole ellipsoid gets its pole first: with only
-/// its equator, a half was the equator's polygon, and both halves used the same chords
-/// (edges of four faces): at 24 to 60 vertices the three decoded not manifold, with up to
-/// 4 flipped triangles, and one alone at 8 vertices with 2 flipped.
+/// at 10 to 100 vertices by either scheme. Each half of a whole ellipsoid gets its pole
+/// first: with only its equator, a half was the equator's polygon, and both halves used the
+/// same chords (edges of four faces): at 24 to 60 vertices the three decoded not manifold,
+/// with up to 4 flipped triangles (by the parametric scheme at 10 to 100), and one alone at
+/// 8 vertices with 2 flipped.
 #[test]
 fn thin_whole_ellipsoids_decode_clean_at_the_smallest_budgets() {
     let (mesh, _) = common::three_boxes();
     let (_, rep) = encode_unchecked(&mesh, 3);
     assert!(rep.cycles.iter().all(Vec::is_empty), "three whole regions");
     for budget in [10, 24, 30, 40, 60, 100] {
-        let out = remesh(&rep, &by_vertex_addition(budget)).unwrap();
-        let c = out.check;
-        assert_eq!((c.flipped, c.degenerate), (0, 0), "{budget}: {c:?}");
-        assert!(
-            c.closed && c.manifold && c.consistently_oriented,
-            "{budget}: {c:?}"
-        );
-        assert_eq!(out.attempts, 1, "{budget}");
+        for options in [
+            by_vertex_addition(budget),
+            options(budget, Scheme::Parametric),
+        ] {
+            let out = remesh(&rep, &options).unwrap();
+            let c = out.check;
+            let context = format!("{budget} {:?}", options.scheme);
+            assert_eq!((c.flipped, c.degenerate), (0, 0), "{context}: {c:?}");
+            assert!(
+                c.closed && c.manifold && c.consistently_oriented,
+                "{context}: {c:?}"
+            );
+            assert_eq!(out.attempts, 1, "{context}");
+        }
     }
 }
 

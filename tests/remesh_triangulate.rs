@@ -28,6 +28,7 @@ impl Region {
             surface: &self.surface,
             boundary: &self.boundary,
             loops: &self.loops,
+            seeds: &[],
         }
     }
 }

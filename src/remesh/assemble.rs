@@ -1249,7 +1249,7 @@ struct Piece {
     /// [`triangulate_adaptive`], which would otherwise build the same again).
     start: Option<AdaptiveTriangulation>,
     /// For a whole ellipsoid's half ([`split_whole`]): its pole, its first interior vertex
-    /// ([`AdaptiveTriangulation::insert_at`]).
+    /// ([`RegionInput::seeds`]).
     pole: Option<DVec3>,
 }
 
@@ -1359,21 +1359,13 @@ impl Piece {
         })
     }
 
-    /// Its boundary-only adaptive triangulation, with its pole when it has one.
-    fn start(&self, min_spacing: f64) -> Result<AdaptiveTriangulation, RemeshError> {
-        let mut start = AdaptiveTriangulation::new(&self.input(), min_spacing)?;
-        if let Some(pole) = self.pole {
-            start.insert_at(pole);
-        }
-        Ok(start)
-    }
-
     fn input(&self) -> RegionInput<'_> {
         RegionInput {
             region: self.region,
             surface: &self.surface,
             boundary: &self.boundary,
             loops: &self.loops,
+            seeds: self.pole.as_slice(),
         }
     }
 }
@@ -1391,7 +1383,7 @@ fn settle_charts(
 ) -> Result<(), RemeshError> {
     let min_spacing = min_spacing(spacing);
     for piece in pieces.iter_mut() {
-        let error = match piece.start(min_spacing) {
+        let error = match AdaptiveTriangulation::new(&piece.input(), min_spacing) {
             Ok(start) => {
                 piece.start = Some(start);
                 continue;
@@ -1404,7 +1396,7 @@ fn settle_charts(
             .and_then(|e| piece.view_from_beneath(e))
             .map(|p| p.with_offsets(spacing));
         let started = other.and_then(|mut other| {
-            let start = other.start(min_spacing).ok()?;
+            let start = AdaptiveTriangulation::new(&other.input(), min_spacing).ok()?;
             other.start = Some(start);
             Some(other)
         });
@@ -1474,7 +1466,8 @@ fn projection_onto(
 
 /// A whole ellipsoid cut along its local equator into two halves sharing the equator's
 /// points, each in its own chart (whose pole is then the other half's pole) and with its
-/// own pole as its first interior vertex ([`Piece::start`]).
+/// own pole as its first interior vertex ([`RegionInput::seeds`]), whichever scheme
+/// meshes it.
 fn split_whole(
     region: u32,
     e: &Ellipsoid,
@@ -1557,7 +1550,7 @@ fn triangulate_adaptive(
         .iter_mut()
         .map(|piece| match piece.start.take() {
             Some(start) => Ok(start),
-            None => piece.start(min_spacing(spacing)),
+            None => AdaptiveTriangulation::new(&piece.input(), min_spacing(spacing)),
         })
         .collect::<Result<Vec<_>, _>>()?;
     let worst_of = |tris: &[AdaptiveTriangulation]| -> BinaryHeap<Worst> {
@@ -1629,7 +1622,7 @@ fn mend_curved_splits(
     if !curved || mesh.turned == 0 {
         return Ok(mesh);
     }
-    let mut by_length = piece.start(min_spacing)?;
+    let mut by_length = AdaptiveTriangulation::new(&piece.input(), min_spacing)?;
     by_length.judge_by_length();
     while by_length.added() < added && by_length.insert_worst() {}
     let again = by_length.finish();

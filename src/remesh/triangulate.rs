@@ -7,7 +7,6 @@
 //! AdaptiveTriangulation::new(&RegionInput, min_spacing) -> Result<Self, RemeshError>
 //!     .worst_error() -> Option<f64>   // distance of the worst face centre from the surface
 //!     .insert_worst() -> bool         // false when no candidate is left
-//!     .insert_at(point) -> bool       // a given point first (a whole ellipsoid's pole)
 //!     .added() -> usize               // interior vertices inserted so far
 //!     .finish() -> RegionMesh
 //! triangulate_parametric(&RegionInput, interior_vertices, min_spacing) -> Result<RegionMesh, RemeshError>
@@ -57,6 +56,13 @@ pub struct RegionInput<'a> {
     /// The region's boundary loops as indices into `boundary`, each closed (the first index
     /// not repeated at the end), with the region on its left (outward normal up).
     pub loops: &'a [Vec<u32>],
+    /// Points (model units, on or near the region's surface) whose surface points are its
+    /// first interior vertices, before either scheme adds any, each where its chart
+    /// position lies strictly inside the region: a whole ellipsoid's half gets its pole
+    /// (`assemble`'s `split_whole`). Without it, a half given no vertex of its own was its
+    /// equator's polygon, and both halves' polygons used the same chords (every one an edge
+    /// of four faces, flat across the ellipsoid).
+    pub seeds: &'a [DVec3],
 }
 
 /// A triangle corner: a boundary vertex (index into [`RegionInput::boundary`]) or a new
@@ -333,7 +339,7 @@ impl RegionCdt {
             })
             .collect();
         let side = surface.ellipsoid().normal_side();
-        let region_cdt = RegionCdt {
+        let mut region_cdt = RegionCdt {
             surface,
             cdt,
             interior: Vec::new(),
@@ -343,7 +349,35 @@ impl RegionCdt {
             star: Vec::new(),
         };
         region_cdt.check_sides(&loops, &handles, region)?;
+        for &seed in input.seeds {
+            region_cdt.insert_seed(seed);
+        }
         Ok(region_cdt)
+    }
+
+    /// Inserts the surface point at the chart position of `point` as an interior vertex,
+    /// when that position lies strictly inside an inside face ([`RegionInput::seeds`]).
+    fn insert_seed(&mut self, point: DVec3) {
+        let plane = self.surface.chart.to_plane(point);
+        if !is_valid_plane_point(plane) {
+            return;
+        }
+        let q = to_point(plane);
+        let spade::PositionInTriangulation::OnFace(face) = self.cdt.locate(q) else {
+            return;
+        };
+        let face = self.cdt.face(face);
+        let strictly_inside = face
+            .adjacent_edges()
+            .iter()
+            .all(|e| e.side_query(q).is_on_left_side());
+        if *face.data() && strictly_inside {
+            let hint = face.vertices()[0].fix();
+            let lifted = self
+                .surface
+                .point_height_and_clearance(plane, |_| f64::NEG_INFINITY);
+            self.insert_interior(plane, lifted, hint);
+        }
     }
     /// The region must lie on the left of its loops (seen against the signed normal); if most
     /// loop edges see it on their right, the flood fill found the complement: the chart's pole
@@ -808,59 +842,18 @@ impl AdaptiveTriangulation {
                 continue;
             }
             self.curved_splits |= verdict == Verdict::SplitCurved;
-            self.requeue_star();
+            let star = std::mem::take(&mut self.inner.star);
+            for &face in &star {
+                if let Some(version) = self.versions.get_mut(face.index()) {
+                    *version = version.wrapping_add(1);
+                }
+                self.push_face(face);
+            }
+            self.inner.star = star;
+            self.drop_stale_top();
             return true;
         }
         false
-    }
-
-    /// Inserts the surface point at the chart position of `point` (model units, on or near
-    /// the region's ellipsoid) as an interior vertex, when that position lies strictly
-    /// inside an inside face; returns whether it did. For a whole ellipsoid's half
-    /// (`assemble`'s `split_whole`), its pole, before any other: without it, a half given
-    /// no vertex of its own is its equator's polygon, and both halves' polygons use the
-    /// same chords (every one an edge of four faces, flat across the ellipsoid).
-    pub fn insert_at(&mut self, point: DVec3) -> bool {
-        let plane = self.inner.surface.chart.to_plane(point);
-        if !is_valid_plane_point(plane) {
-            return false;
-        }
-        let q = to_point(plane);
-        let spade::PositionInTriangulation::OnFace(face) = self.inner.cdt.locate(q) else {
-            return false;
-        };
-        let face = self.inner.cdt.face(face);
-        let strictly_inside = face
-            .adjacent_edges()
-            .iter()
-            .all(|e| e.side_query(q).is_on_left_side());
-        if !(*face.data() && strictly_inside) {
-            return false;
-        }
-        let hint = face.vertices()[0].fix();
-        let lifted = self
-            .inner
-            .surface
-            .point_height_and_clearance(plane, |_| f64::NEG_INFINITY);
-        if self.inner.insert_interior(plane, lifted, hint).is_none() {
-            return false;
-        }
-        self.requeue_star();
-        true
-    }
-
-    /// After an insertion: marks the faces around the new vertex remade
-    /// ([`Self::is_current`]) and pushes their candidates.
-    fn requeue_star(&mut self) {
-        let star = std::mem::take(&mut self.inner.star);
-        for &face in &star {
-            if let Some(version) = self.versions.get_mut(face.index()) {
-                *version = version.wrapping_add(1);
-            }
-            self.push_face(face);
-        }
-        self.inner.star = star;
-        self.drop_stale_top();
     }
 
     /// Sets the minimum spacing (see [`AdaptiveTriangulation::new`]) and makes every inside
@@ -1709,6 +1702,7 @@ mod tests {
             surface: &RegionSurface::new(chart.clone()),
             boundary: &boundary,
             loops: &loops,
+            seeds: &[],
         };
         let cdt = RegionCdt::new(&input).unwrap();
         let mut inside = 0;
@@ -1808,6 +1802,7 @@ mod tests {
                 surface: &RegionSurface::new(chart.clone()),
                 boundary,
                 loops,
+                seeds: &[],
             };
             let cdt = RegionCdt::new(&input).unwrap();
             for rows in [20.0, 40.0, 101.0] {
@@ -1851,6 +1846,7 @@ mod tests {
             surface: &RegionSurface::new(chart.clone()),
             boundary: &boundary,
             loops: &loops,
+            seeds: &[],
         };
         let run = |spacing: f64| {
             let mut tri = AdaptiveTriangulation::new(&input, spacing).unwrap();
@@ -1882,6 +1878,7 @@ mod tests {
             surface: &surface,
             boundary: &boundary,
             loops: &loops,
+            seeds: &[],
         };
         let mut tri = AdaptiveTriangulation::new(&input, 0.0).unwrap();
         let (mut current, mut stale) = (0, 0);
@@ -1946,6 +1943,7 @@ mod tests {
             surface: &RegionSurface::new(chart),
             boundary: &boundary,
             loops: &loops,
+            seeds: &[],
         };
         let mut tri = AdaptiveTriangulation::new(&input, 0.01).unwrap();
         while tri.added() < 400 && tri.insert_worst() {}
@@ -1994,6 +1992,7 @@ mod tests {
                 surface: &surface,
                 boundary: &boundary,
                 loops: &loops,
+                seeds: &[],
             };
             let Ok(cdt) = RegionCdt::new(&input) else {
                 continue;
