@@ -118,19 +118,8 @@ pub struct EllipsoidMetric {
 /// as the mesh has it. Small pieces with depth (the head scan from npm's `snowden` has
 /// boxes of seven triangles) determine an ellipsoid well enough and are not specks.
 pub fn speck_faces(mesh: &Mesh) -> Vec<bool> {
-    let topology = mesh.topology();
-    let labels = topology.face_components();
-    let mut vertices: Vec<Vec<u32>> = vec![Vec::new(); topology.component_count()];
-    for (face, &c) in mesh.faces().iter().zip(labels) {
-        let Some(list) = vertices.get_mut(c as usize) else {
-            continue;
-        };
-        for &v in face {
-            if list.len() < MIN_ELLIPSOID_SAMPLES && !list.contains(&v) {
-                list.push(v);
-            }
-        }
-    }
+    let labels = mesh.topology().face_components();
+    let vertices = few_vertices_per_piece(mesh);
     let positions = mesh.positions();
     let flat = |list: &Vec<u32>| {
         let points: Vec<DVec3> = list
@@ -174,19 +163,8 @@ impl SmallSolids {
         let topology = mesh.topology();
         let labels = topology.face_components();
         let n = topology.component_count();
-        // Per piece: its vertices, up to one too many for a small one; then the faces of
-        // the small pieces.
-        let mut vertices: Vec<Vec<u32>> = vec![Vec::new(); n];
-        for (&c, face) in labels.iter().zip(mesh.faces()) {
-            let Some(seen) = vertices.get_mut(c as usize) else {
-                continue;
-            };
-            for &v in face {
-                if seen.len() < MIN_ELLIPSOID_SAMPLES && !seen.contains(&v) {
-                    seen.push(v);
-                }
-            }
-        }
+        // The faces of the small pieces.
+        let vertices = few_vertices_per_piece(mesh);
         let mut faces: Vec<Vec<usize>> = vec![Vec::new(); n];
         for (f, &c) in labels.iter().enumerate() {
             let small = vertices
@@ -224,6 +202,25 @@ impl SmallSolids {
                 .all(|&f| self.piece_of_face.get(f as usize) == Some(&piece)))
         .then_some(ellipsoid)
     }
+}
+
+/// Per piece (edge-connected component) of `mesh`, its vertices in order of first use, up
+/// to [`MIN_ELLIPSOID_SAMPLES`]: all of them for a piece with fewer (a speck or a small
+/// solid), one too many otherwise.
+fn few_vertices_per_piece(mesh: &Mesh) -> Vec<Vec<u32>> {
+    let topology = mesh.topology();
+    let mut vertices: Vec<Vec<u32>> = vec![Vec::new(); topology.component_count()];
+    for (face, &c) in mesh.faces().iter().zip(topology.face_components()) {
+        let Some(list) = vertices.get_mut(c as usize) else {
+            continue;
+        };
+        for &v in face {
+            if list.len() < MIN_ELLIPSOID_SAMPLES && !list.contains(&v) {
+                list.push(v);
+            }
+        }
+    }
+    vertices
 }
 
 /// Whether `points` are no thicker than [`SPECK_THICKNESS`] of their extent (the square root
