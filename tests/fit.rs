@@ -799,3 +799,37 @@ fn a_closed_box_gets_the_ellipsoid_of_its_solid() {
     assert_eq!(fit_solid(&[a, [a[0], a[2], a[1]]]), None);
     assert_eq!(fit_solid(&[]), None);
 }
+
+/// Faces that do not bound a solid get no solid's ellipsoid, however much signed volume they
+/// sweep from their centroid: a box with a face missing, a box with a face turned, the two
+/// triangles of a quad (Stanford's dragon at `res4` has such pieces, whose other faces lie
+/// on other pieces across non-manifold edges).
+#[test]
+fn open_pieces_have_no_solid() {
+    use ellip::ellipsoid::fit::{bounds_solid, fit_solid};
+    let plate = ellip::synth::shapes::cube(1.0, 1)
+        .map_positions(|p| 2.0 * p * DVec3::new(30.0, 2.5, 72.5))
+        .unwrap();
+    let closed = triangles(&plate);
+    assert!(bounds_solid(&closed));
+    assert!(fit_solid(&closed).is_some());
+    for k in 0..closed.len() {
+        let mut missing = closed.clone();
+        missing.remove(k);
+        assert!(!bounds_solid(&missing), "face {k} missing");
+        assert_eq!(fit_solid(&missing), None, "face {k} missing");
+        let mut turned = closed.clone();
+        turned[k].swap(1, 2);
+        assert!(!bounds_solid(&turned), "face {k} turned");
+        assert_eq!(fit_solid(&turned), None, "face {k} turned");
+    }
+    // A bent quad: from its centroid its two triangles sweep a volume that is not zero.
+    let [p, q, r, s] = [
+        DVec3::ZERO,
+        DVec3::new(1.0, 0.0, 0.0),
+        DVec3::new(1.0, 1.0, 0.5),
+        DVec3::new(0.0, 1.0, 0.0),
+    ];
+    assert_eq!(fit_solid(&[[p, q, r], [p, r, s]]), None);
+    assert!(!bounds_solid(&[]));
+}

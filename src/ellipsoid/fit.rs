@@ -427,8 +427,10 @@ pub fn fit_tangent_sphere(input: &FitInput<'_>, options: &FitOptions) -> Option<
 /// solid's centroid, principal axes and proportions (radii proportional to the square roots
 /// of the second moments of its volume, as a solid ellipsoid's are: a²/5 along each axis)
 /// and the solid's volume. Positive for a piece whose triangles face outward (positive
-/// signed volume), negative for one that faces inward (a void). `None` when the volume is
-/// not finite or too small for its extent to give three radii (a flat or open piece).
+/// signed volume), negative for one that faces inward (a void). `None` when the triangles
+/// do not bound a solid ([`bounds_solid`]: an open piece, whose signed volume depends on
+/// where it is measured from), or when the volume is not finite or too small for its extent
+/// to give three radii (a flat piece).
 ///
 /// For the small closed pieces of a CAD assembly (boxes, pegs, wedges of eight vertices or
 /// fewer), which a segmentation leaves one region each: a region with no boundary is decoded
@@ -437,6 +439,9 @@ pub fn fit_tangent_sphere(input: &FitInput<'_>, options: &FitOptions) -> Option<
 /// decoded as a ball as wide as the plate's diagonal). The solid's ellipsoid sees the faces
 /// between the vertices: a box of half-extents a, b, c gets radii 1.24·a, 1.24·b, 1.24·c.
 pub fn fit_solid(triangles: &[[DVec3; 3]]) -> Option<Ellipsoid> {
+    if !bounds_solid(triangles) {
+        return None;
+    }
     let count = triangles.len().max(1) as f64;
     let origin = triangles.iter().flatten().sum::<DVec3>() / (3.0 * count);
     // Tetrahedra from the origin to each triangle: signed volume, first and second moments
@@ -488,6 +493,26 @@ pub fn fit_solid(triangles: &[[DVec3; 3]]) -> Option<Ellipsoid> {
         },
     };
     ellipsoid.is_valid().then_some(ellipsoid)
+}
+
+/// Whether `triangles` bound a solid: some, and every edge (a pair of corner positions) run
+/// one way by as many of them as run it the other way, so that their signed volume is the
+/// same measured from any point. A piece of a mesh with no border edge may still not: the
+/// other faces at a non-manifold edge can lie on another piece (Stanford's dragon at `res4`
+/// has pieces of two triangles on four vertices whose every edge is another piece's too).
+pub fn bounds_solid(triangles: &[[DVec3; 3]]) -> bool {
+    let key = |p: DVec3| p.to_array().map(f64::to_bits);
+    let mut forward = Vec::with_capacity(3 * triangles.len());
+    let mut backward = Vec::with_capacity(3 * triangles.len());
+    for t in triangles {
+        for (u, v) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+            forward.push((key(u), key(v)));
+            backward.push((key(v), key(u)));
+        }
+    }
+    forward.sort_unstable();
+    backward.sort_unstable();
+    !triangles.is_empty() && forward == backward
 }
 
 /// The objective at full resolution, in world units; capped to a finite value.
