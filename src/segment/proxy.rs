@@ -142,20 +142,15 @@ pub fn speck_faces(mesh: &Mesh) -> Vec<bool> {
 /// ([`MIN_ELLIPSOID_SAMPLES`]): a CAD assembly's boxes, pegs and wedges. A region that is
 /// such a piece whole has no boundary and is decoded as its whole ellipsoid, which is fitted
 /// to the solid ([`fit_solid`]) rather than to its few vertices, which leave it free: in
-/// assimp's `regr01`, a house of 58 pieces, 33 of them closed with eight vertices or fewer,
-/// a plate 5 thick and 157 across was decoded as a ball 157 across. Scans have a few too
-/// (Stanford's dragon at `res3` 11, at `res4` 9).
-///
-/// Closed means no border edge and the piece's own faces bounding a solid
-/// ([`bounds_solid`](crate::ellipsoid::fit::bounds_solid)): across a non-manifold edge (where
-/// import cuts pieces apart) an edge's other faces may lie on another piece. 20 of
-/// `regr01`'s boxes touch others along an edge and are solids of their own. The head scan's
-/// 53 small pieces with no border edge are not (26 are eight triangles but one, the rest
-/// single triangles: their missing faces lie on other pieces), nor are 13 of the dragon's 24
-/// at `res3` and 5 of 14 at `res4`. Fitted as solids (a signed volume measured from their
-/// vertices' centroid), two of those were among the regions the decoder could not mesh
-/// cleanly in the dragon at `res4` at 290 regions, where the encoder found no clean file in
-/// 24 rounds of mending and took five times as long.
+/// assimp's `regr01`, a house of 58 pieces, 35 of them closed with eight vertices or fewer,
+/// a plate 5 thick and 157 across was decoded as a ball 157 across. Closed pieces this small
+/// are also the scans' debris (Stanford's dragon at `res3` has 24, npm's head scan 53).
+/// Closed means no border edge: every edge has another face, which may lie on another piece
+/// across a non-manifold edge (where import cuts pieces apart). 20 of `regr01`'s boxes touch
+/// others along an edge and bound a solid on their own; 26 of the head's small pieces are
+/// eight triangles but one, whose edges lie on other pieces, and [`fit_solid`] closes them
+/// with that triangle; the single triangles and the pairs of the head and the dragon are no
+/// solid's surface and keep their ordinary fit.
 #[derive(Debug, Clone, Default)]
 struct SmallSolids {
     /// Per face, its piece (edge-connected component).
