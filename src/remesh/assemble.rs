@@ -664,12 +664,13 @@ impl Plan<'_> {
             tolerance,
             ..
         } = *self;
+        // The pool's points that no piece uses (pruned ears, loops that enclose nothing, the
+        // loops of regions left out) are not in the mesh, and not counted against the budget.
+        let boundary = boundary_in_use(pieces, positions.len());
         let meshes = match options.scheme {
-            Scheme::Adaptive => {
-                triangulate_adaptive(pieces, positions.len(), budget, tolerance, spacing)?
-            }
+            Scheme::Adaptive => triangulate_adaptive(pieces, boundary, budget, tolerance, spacing)?,
             Scheme::Parametric => {
-                triangulate_by_area(pieces, positions.len(), budget, min_spacing(spacing))?
+                triangulate_by_area(pieces, boundary, budget, min_spacing(spacing))?
             }
         };
         join(rep, options.max_vertices, positions, pieces, meshes)
@@ -835,6 +836,17 @@ impl Plan<'_> {
 
 /// The boundary vertex pool and the pieces meshed on it.
 type Pieces = (Vec<DVec3>, Vec<Piece>);
+
+/// How many of a pool of `pool` boundary vertices the pieces' loops use.
+fn boundary_in_use(pieces: &[Piece], pool: usize) -> usize {
+    let mut used = vec![false; pool];
+    for &v in pieces.iter().flat_map(|p| &p.global) {
+        if let Some(u) = used.get_mut(v as usize) {
+            *u = true;
+        }
+    }
+    used.iter().filter(|&&u| u).count()
+}
 
 /// `result`'s value; with `faults`, a region error is noted there instead (`None`: the
 /// region is left out) rather than returned.
