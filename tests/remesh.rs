@@ -653,6 +653,60 @@ fn unused_boundary_points_do_not_count_against_the_budget() {
     }
 }
 
+/// A treatment that meshes clean but stops short of the budget is not the last word. An
+/// octahedron less one face, encoded as one region, names the stored arcs as its first
+/// treatment (the one clean at its own 6 vertices); their loop is the missing face's three
+/// edges, far off the ellipsoid, and the boundary clearance keeps every face after the
+/// first split from being split again: it decoded 4 vertices at any budget of 1 000 or
+/// more. The refined arcs meet the budget, clean.
+#[test]
+fn a_clean_mesh_short_of_the_budget_is_not_the_last_word() {
+    use ellip::remesh::assemble::Treatment;
+    let (x, y, z) = (1.0, 1.5, 0.7);
+    let positions = vec![
+        DVec3::new(x, 0.0, 0.0),
+        DVec3::new(-x, 0.0, 0.0),
+        DVec3::new(0.0, y, 0.0),
+        DVec3::new(0.0, -y, 0.0),
+        DVec3::new(0.0, 0.0, z),
+        DVec3::new(0.0, 0.0, -z),
+    ];
+    // The octahedron's eight faces, outward, less [3, 1, 5].
+    let faces = vec![
+        [0, 2, 4],
+        [2, 1, 4],
+        [1, 3, 4],
+        [3, 0, 4],
+        [2, 0, 5],
+        [1, 2, 5],
+        [3, 1, 5],
+    ];
+    let mesh = Mesh::new(positions, faces).unwrap();
+    let (_, rep) = encode(&mesh, 1);
+    let stored = rep
+        .metadata
+        .remesh_hint
+        .and_then(Treatment::from_code)
+        .expect("a hint");
+    assert!(
+        !stored.refined,
+        "the hint names the stored arcs: {stored:?}"
+    );
+    for budget in [1_000, 5_000] {
+        let out = remesh(&rep, &options(budget, Scheme::Adaptive)).unwrap();
+        let context = format!("{budget}");
+        assert_clean(&out, &context);
+        assert_eq!(out.check.border_loops, 1, "{context}");
+        let n = out.mesh.vertex_count();
+        assert!(
+            n.abs_diff(budget) * 100 <= budget,
+            "{n} vertices at {budget}"
+        );
+        assert_eq!(out.attempts, 2, "{context}");
+        assert!(out.treatment.is_some_and(|t| t.refined), "{context}");
+    }
+}
+
 #[test]
 fn subdivision_levels_follow_the_budget() {
     let o = RemeshOptions::default();
