@@ -1587,7 +1587,13 @@ fn min_spacing(spacing: f64) -> f64 {
 }
 
 /// Adaptive scheme: the budget shared by error through a max-heap of the pieces' worst
-/// errors (section 5.3).
+/// errors (section 5.3). Mending faces turned against their ellipsoid can remove interior
+/// vertices ([`AdaptiveTriangulation::finish`]); when that leaves the mesh short of the
+/// budget by more than the 1 % it is honoured within ([`BUDGET_MET`]), vertex addition is
+/// made again from the boundary-only triangulations with the shortfall added to the
+/// budget (up to [`MAX_BUDGET_RETRIES`] times), and kept if it comes closer with no more
+/// turned faces. CGAL's cow (its encoder's file) at 20 000 vertices lost 351 in six
+/// regions (155 of 779 in one) and decoded 19 649; 19 994 with this.
 fn triangulate_adaptive(
     pieces: &mut [Piece],
     boundary_vertices: usize,
@@ -1595,6 +1601,49 @@ fn triangulate_adaptive(
     tolerance: Option<f64>,
     spacing: f64,
 ) -> Result<Vec<RegionMesh>, RemeshError> {
+    let made = |meshes: &[RegionMesh]| {
+        boundary_vertices + meshes.iter().map(|m| m.interior.len()).sum::<usize>()
+    };
+    let turned = |meshes: &[RegionMesh]| meshes.iter().map(|m| m.turned).sum::<usize>();
+    let short = |made: usize| (made as f64) < BUDGET_MET * budget as f64;
+    let (mut meshes, spent) = add_vertices(pieces, boundary_vertices, budget, tolerance, spacing)?;
+    let mut asked = budget;
+    for _ in 0..MAX_BUDGET_RETRIES {
+        let kept = made(&meshes);
+        if !spent || !short(kept) {
+            break;
+        }
+        asked += budget - kept;
+        let (again, _) = add_vertices(pieces, boundary_vertices, asked, tolerance, spacing)?;
+        if made(&again).abs_diff(budget) < kept.abs_diff(budget)
+            && turned(&again) <= turned(&meshes)
+        {
+            meshes = again;
+        }
+    }
+    Ok(meshes)
+}
+
+/// Most times [`triangulate_adaptive`] makes vertex addition again to make up for the
+/// vertices mending removed. Two hemispheres whose boundary points are pulled to 0.6 of
+/// their distance from the centre decode 4 681 vertices at 5 000 after one, 4 989 with
+/// up to three (4 331 with none).
+const MAX_BUDGET_RETRIES: usize = 3;
+
+/// The share of its vertex budget the adaptive scheme's mesh has at least, as a rule
+/// ([`triangulate_adaptive`]): the budget is honoured within 1 %.
+const BUDGET_MET: f64 = 0.99;
+
+/// Vertex addition for [`triangulate_adaptive`] to `budget` vertices in all, each piece
+/// finished ([`mend_curved_splits`]); and whether the budget was spent (else the spacing or
+/// the tolerance stopped it first).
+fn add_vertices(
+    pieces: &mut [Piece],
+    boundary_vertices: usize,
+    budget: usize,
+    tolerance: Option<f64>,
+    spacing: f64,
+) -> Result<(Vec<RegionMesh>, bool), RemeshError> {
     // The triangulations settle_charts built (the same as built here: same input, same
     // spacing), else built again (a retry after a region was left out).
     let mut tris = pieces
@@ -1649,11 +1698,12 @@ fn triangulate_adaptive(
             });
         }
     }
-    pieces
+    let meshes = pieces
         .iter()
         .zip(tris)
         .map(|(piece, t)| mend_curved_splits(piece, t, min_spacing))
-        .collect()
+        .collect::<Result<_, _>>()?;
+    Ok((meshes, total >= budget))
 }
 
 /// The piece's mesh; but where splitting faces far from the surface left a face turned
