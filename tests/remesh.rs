@@ -671,7 +671,7 @@ fn a_clean_mesh_short_of_the_budget_is_not_the_last_word() {
         DVec3::new(0.0, 0.0, z),
         DVec3::new(0.0, 0.0, -z),
     ];
-    // The octahedron's eight faces, outward, less [3, 1, 5].
+    // The octahedron's eight faces, outward, less [0, 3, 5].
     let faces = vec![
         [0, 2, 4],
         [2, 1, 4],
