@@ -1138,6 +1138,43 @@ fn scratch(tag: &str) -> PathBuf {
     dir
 }
 
+/// `ellip decode --json` reports the budget it was asked for, and a decode more than 1 %
+/// short of it says so on standard error (and only then). The sphere fixture's parametric
+/// grid gives 4 919 vertices at 5 000; vertex addition meets the budget.
+#[test]
+fn a_decode_short_of_its_budget_says_so() {
+    let dir = scratch("short");
+    let input = root().join("fixtures/ellip/v1/sphere.ellip");
+    let output = dir.join("sphere.ply");
+    let mut shorts = 0;
+    for scheme in ["adaptive", "parametric"] {
+        let out = ellip(&[
+            "decode",
+            input.to_str().unwrap(),
+            "-o",
+            output.to_str().unwrap(),
+            "--vertices",
+            "5000",
+            "--scheme",
+            scheme,
+            "--json",
+        ]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{scheme}: {stderr}");
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(v["vertex_budget"], 5000, "{scheme}");
+        let n = v["vertices"].as_u64().unwrap();
+        let short = n * 100 < 99 * 5000;
+        assert_eq!(
+            stderr.contains("short of the budget of 5000"),
+            short,
+            "{scheme}: {n} vertices: {stderr}"
+        );
+        shorts += usize::from(short);
+    }
+    assert_eq!(shorts, 1, "the parametric decode is the short one");
+}
+
 #[test]
 fn ellip_decode_writes_a_valid_glb() {
     let dir = scratch("decode");

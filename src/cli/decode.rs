@@ -129,6 +129,9 @@ pub struct DecodeReport {
     scheme: &'static str,
     regions: usize,
     vertices: usize,
+    /// The vertex budget asked for ([`RemeshOptions::budget`]: the option, else the file's
+    /// suggestion or source vertex count, else the default).
+    vertex_budget: usize,
     triangles: usize,
     /// Every edge has exactly two faces (of the mesh before any colouring split).
     closed: bool,
@@ -198,7 +201,13 @@ pub fn output_format(output: &Path) -> Result<MeshFormat, CliError> {
     }
 }
 
-/// Remeshes `rep`, writes the mesh to `output` and says what was made.
+/// Below this share of the budget a decode says it fell short (the budget is met within 1 %
+/// as a rule: `remesh::assemble`).
+const BUDGET_NOTED: f64 = 0.99;
+
+/// Remeshes `rep`, writes the mesh to `output` and says what was made; notes on standard
+/// error (unless `quiet`) a mesh that is not clean, regions left out and a mesh short of
+/// its budget.
 pub fn remesh_and_write(
     rep: &Representation,
     options: &RemeshOptions,
@@ -228,6 +237,20 @@ pub fn remesh_and_write(
     if !quiet && !check.is_clean() {
         eprintln!("warning: the mesh is not clean: {}", check.faults());
     }
+    let budget = options.budget(rep);
+    let vertices = remeshed.mesh.vertex_count();
+    let short = (vertices as f64) < BUDGET_NOTED * budget as f64;
+    if !quiet && options.tolerance.is_none() && remeshed.omitted.is_empty() && short {
+        eprintln!(
+            "note: {vertices} vertices, short of the budget of {budget}: {}",
+            match options.scheme {
+                Scheme::Adaptive =>
+                    "the regions take no more (nearly flat regions, boundaries far off their ellipsoids)",
+                Scheme::Parametric =>
+                    "the parametric grid's count follows the regions' shapes (the adaptive scheme meets the budget)",
+            }
+        );
+    }
     if !quiet && !remeshed.omitted.is_empty() {
         let listed: Vec<String> = remeshed.omitted.iter().map(u32::to_string).collect();
         eprintln!(
@@ -243,7 +266,8 @@ pub fn remesh_and_write(
             Scheme::Parametric => "parametric",
         },
         regions: rep.region_count(),
-        vertices: remeshed.mesh.vertex_count(),
+        vertices,
+        vertex_budget: budget,
         triangles: remeshed.mesh.face_count(),
         closed: check.closed,
         manifold: check.manifold,
