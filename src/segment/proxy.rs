@@ -3,7 +3,7 @@
 use super::{Mode, SegmentError, SegmentOptions};
 use crate::ellipsoid::fit::{
     eigen_symmetric, evaluate_error, fit_ellipsoid, fit_solid, fit_tangent_sphere, scatter,
-    FitInput, FitOptions, SignChoice, MIN_ELLIPSOID_SAMPLES,
+    FitOptions, SignChoice, MIN_ELLIPSOID_SAMPLES,
 };
 use crate::ellipsoid::hull::convex_hull_volume;
 use crate::ellipsoid::metric::{
@@ -420,8 +420,7 @@ impl EllipsoidMetric {
             self.orient_by_own_faces(faces, &mut samples);
         }
         let options = self.with_volume(self.fresh, &samples);
-        let input = FitInput::new(&samples.points, &samples.normals, &samples.curvatures).ok()?;
-        let input = input.with_weights(&samples.weights).unwrap_or(input);
+        let input = samples.fit_input().ok()?;
         fit_tangent_sphere(&input, &options)
             .filter(|sphere| !self.turns_a_face(faces, &sphere.ellipsoid))
             .map(|sphere| (sphere.ellipsoid, sphere.error))
@@ -435,8 +434,7 @@ impl EllipsoidMetric {
             return None;
         }
         let options = self.with_volume(self.fresh, samples);
-        let input = FitInput::new(&samples.points, &samples.normals, &samples.curvatures).ok()?;
-        let input = input.with_weights(&samples.weights).unwrap_or(input);
+        let input = samples.fit_input().ok()?;
         Some((ellipsoid, evaluate_error(&input, &options, &ellipsoid)))
     }
 
@@ -579,12 +577,8 @@ impl ProxyMetric for EllipsoidMetric {
             },
             &samples,
         );
-        // The arrays come from one gather and have equal lengths; should that ever fail, the
-        // unweighted samples are still a sound (if slightly different) input.
-        let base = FitInput::new(&samples.points, &samples.normals, &samples.curvatures);
-        let fitted = match base {
+        let fitted = match samples.fit_input() {
             Ok(input) => {
-                let input = input.with_weights(&samples.weights).unwrap_or(input);
                 let input = match previous {
                     Some(&p) => input.with_start(p),
                     None => input,
