@@ -710,7 +710,14 @@ impl Plan<'_> {
         // loops of regions left out) are not in the mesh, and not counted against the budget.
         let boundary = boundary_in_use(pieces, positions.len());
         let meshes = match options.scheme {
-            Scheme::Adaptive => triangulate_adaptive(pieces, boundary, budget, tolerance, spacing)?,
+            Scheme::Adaptive => triangulate_adaptive(
+                pieces,
+                boundary,
+                budget,
+                options.max_vertices,
+                tolerance,
+                spacing,
+            )?,
             Scheme::Parametric => {
                 triangulate_by_area(pieces, boundary, budget, min_spacing(spacing))?
             }
@@ -1595,12 +1602,14 @@ fn min_spacing(spacing: f64) -> f64 {
 /// budget by more than the 1 % it is honoured within ([`BUDGET_MET`]), vertex addition is
 /// made again from the boundary-only triangulations with the shortfall added to the
 /// budget (up to [`MAX_BUDGET_RETRIES`] times), and kept if it comes closer with no more
-/// turned faces. CGAL's cow (its encoder's file) at 20 000 vertices lost 351 in six
-/// regions (155 of 779 in one) and decoded 19 649; 19 994 with this.
+/// turned faces and within `max_vertices` (it can overshoot the budget, by less than it fell
+/// short). CGAL's cow (its encoder's file) at 20 000 vertices lost 351 in six regions (155
+/// of 779 in one) and decoded 19 649; 19 994 with this.
 fn triangulate_adaptive(
     pieces: &mut [Piece],
     boundary_vertices: usize,
     budget: usize,
+    max_vertices: usize,
     tolerance: Option<f64>,
     spacing: f64,
 ) -> Result<Vec<RegionMesh>, RemeshError> {
@@ -1618,7 +1627,9 @@ fn triangulate_adaptive(
         }
         asked += budget - kept;
         let (again, _) = add_vertices(pieces, boundary_vertices, asked, tolerance, spacing)?;
-        if made(&again).abs_diff(budget) < kept.abs_diff(budget)
+        let remade = made(&again);
+        if remade.abs_diff(budget) < kept.abs_diff(budget)
+            && remade <= max_vertices
             && turned(&again) <= turned(&meshes)
         {
             meshes = again;
