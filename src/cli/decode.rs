@@ -13,6 +13,7 @@ use ellip::export::{write_mesh, MeshData};
 use ellip::format::{decode, Limits};
 use ellip::import::MeshFormat;
 use ellip::preview::palette::palette;
+use ellip::remesh::assemble::BUDGET_MET;
 use ellip::remesh::{remesh, RemeshOptions, Remeshed, Scheme};
 use ellip::representation::Representation;
 use glam::DVec3;
@@ -201,13 +202,9 @@ pub fn output_format(output: &Path) -> Result<MeshFormat, CliError> {
     }
 }
 
-/// Below this share of the budget a decode says it fell short (the budget is met within 1 %
-/// as a rule: `remesh::assemble`).
-const BUDGET_NOTED: f64 = 0.99;
-
 /// Remeshes `rep`, writes the mesh to `output` and says what was made; notes on standard
 /// error (unless `quiet`) a mesh that is not clean, regions left out and a mesh short of
-/// its budget.
+/// its budget (below [`BUDGET_MET`] of it).
 pub fn remesh_and_write(
     rep: &Representation,
     options: &RemeshOptions,
@@ -239,7 +236,7 @@ pub fn remesh_and_write(
     }
     let budget = options.budget(rep);
     let vertices = remeshed.mesh.vertex_count();
-    let short = (vertices as f64) < BUDGET_NOTED * budget as f64;
+    let short = (vertices as f64) < BUDGET_MET * budget as f64;
     if !quiet && options.tolerance.is_none() && remeshed.omitted.is_empty() && short {
         eprintln!(
             "note: {vertices} vertices, short of the budget of {budget}: {}",

@@ -57,7 +57,7 @@
 
 #![allow(clippy::needless_range_loop)] // Small fixed-size linear algebra reads best indexed.
 
-use super::metric::{measure_vertex_terms, VolumeTerm, Weights};
+use super::metric::{measure_vertex_terms, RegionSamples, VolumeTerm, Weights};
 use super::{Ellipsoid, Sign};
 use glam::{DMat3, DQuat, DVec3};
 
@@ -113,6 +113,15 @@ impl<'a> FitInput<'a> {
             weights: None,
             start: None,
         })
+    }
+
+    /// A region's gathered samples ([`crate::ellipsoid::metric::gather_region`]), weighted.
+    /// The arrays come from one gather and have equal lengths; should the weights' ever
+    /// differ, the unweighted samples are still a sound (if slightly different) input.
+    /// Errors as [`FitInput::new`].
+    pub fn of_samples(samples: &'a RegionSamples) -> Result<FitInput<'a>, FitError> {
+        let input = FitInput::new(&samples.points, &samples.normals, &samples.curvatures)?;
+        Ok(input.with_weights(&samples.weights).unwrap_or(input))
     }
 
     /// Per-sample weights (non-finite or negative ones count as 0).

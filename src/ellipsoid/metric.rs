@@ -26,7 +26,6 @@
 //! δ = 10⁵/V² (unit-free as it stands). The fitting works internally in canonical units for
 //! numerical conditioning; see [`crate::ellipsoid::fit`].
 
-use super::fit::{FitError, FitInput};
 use super::Ellipsoid;
 use crate::ellipsoid::hull::convex_hull_volume;
 use crate::mesh::Mesh;
@@ -385,16 +384,6 @@ pub struct RegionSamples {
     pub curvatures: Vec<f64>,
     /// Per-sample weights.
     pub weights: Vec<f64>,
-}
-
-impl RegionSamples {
-    /// The samples as a fit's input, weighted. The arrays come from one gather and have
-    /// equal lengths; should the weights' ever differ, the unweighted samples are still a
-    /// sound (if slightly different) input. Errors as [`FitInput::new`].
-    pub fn fit_input(&self) -> Result<FitInput<'_>, FitError> {
-        let input = FitInput::new(&self.points, &self.normals, &self.curvatures)?;
-        Ok(input.with_weights(&self.weights).unwrap_or(input))
-    }
 }
 
 /// Gather the vertices of `faces` (in order of first appearance) with their weights; vertex

@@ -1644,9 +1644,10 @@ fn triangulate_adaptive(
 /// up to three (4 331 with none).
 const MAX_BUDGET_RETRIES: usize = 3;
 
-/// The share of its vertex budget the adaptive scheme's mesh has at least, as a rule
-/// ([`triangulate_adaptive`]): the budget is honoured within 1 %.
-const BUDGET_MET: f64 = 0.99;
+/// The share of its vertex budget the adaptive scheme's mesh has at least, as a rule: the
+/// budget is honoured within 1 % (vertex addition is made again when mending removed more,
+/// [`assemble`]). `ellip decode` notes a mesh below it.
+pub const BUDGET_MET: f64 = 0.99;
 
 /// Vertex addition for [`triangulate_adaptive`] to `budget` vertices in all, each piece
 /// finished ([`mend_curved_splits`]); and whether the budget was spent (else the spacing or

@@ -3,7 +3,7 @@
 use super::{Mode, SegmentError, SegmentOptions};
 use crate::ellipsoid::fit::{
     eigen_symmetric, evaluate_error, fit_ellipsoid, fit_solid, fit_tangent_sphere, scatter,
-    FitOptions, SignChoice, MIN_ELLIPSOID_SAMPLES,
+    FitInput, FitOptions, SignChoice, MIN_ELLIPSOID_SAMPLES,
 };
 use crate::ellipsoid::hull::convex_hull_volume;
 use crate::ellipsoid::metric::{
@@ -420,7 +420,7 @@ impl EllipsoidMetric {
             self.orient_by_own_faces(faces, &mut samples);
         }
         let options = self.with_volume(self.fresh, &samples);
-        let input = samples.fit_input().ok()?;
+        let input = FitInput::of_samples(&samples).ok()?;
         fit_tangent_sphere(&input, &options)
             .filter(|sphere| !self.turns_a_face(faces, &sphere.ellipsoid))
             .map(|sphere| (sphere.ellipsoid, sphere.error))
@@ -434,7 +434,7 @@ impl EllipsoidMetric {
             return None;
         }
         let options = self.with_volume(self.fresh, samples);
-        let input = samples.fit_input().ok()?;
+        let input = FitInput::of_samples(samples).ok()?;
         Some((ellipsoid, evaluate_error(&input, &options, &ellipsoid)))
     }
 
@@ -577,7 +577,7 @@ impl ProxyMetric for EllipsoidMetric {
             },
             &samples,
         );
-        let fitted = match samples.fit_input() {
+        let fitted = match FitInput::of_samples(&samples) {
             Ok(input) => {
                 let input = match previous {
                     Some(&p) => input.with_start(p),
