@@ -1820,42 +1820,74 @@ fn triangulate_by_area(
         }
     }
     // The grid gives about, not exactly, the asked count: each piece's request is scaled by
-    // its own miss and the pieces gridded again, a few times, keeping the closest total.
-    let mut best: Option<(usize, Vec<RegionMesh>)> = None;
+    // its own miss and the pieces gridded again, a few times. A thin band gets no grid point
+    // until a row fits in it and then a whole row or more, so no round need come close:
+    // each piece's mesh is chosen among its rounds' for the closest total
+    // ([`closest_total`]).
+    let mut rounds: Vec<Vec<RegionMesh>> = vec![Vec::new(); pieces.len()];
     let mut requests = counts;
+    let mut closest = usize::MAX;
     for _ in 0..PARAMETRIC_ROUNDS {
-        let meshes = pieces
-            .iter()
-            .zip(&requests)
-            .map(|(p, &n)| triangulate_parametric(&p.input(), n, min_spacing))
-            .collect::<Result<Vec<_>, _>>()?;
-        let made: usize = meshes.iter().map(|m| m.interior.len()).sum();
-        let miss = made.abs_diff(interior);
-        // A grid far over its request is not asked again (each round costs its size).
-        if made > 2 * interior + 64 {
-            if best.is_none() {
-                best = Some((miss, meshes));
-            }
+        for ((p, &n), options) in pieces.iter().zip(&requests).zip(&mut rounds) {
+            options.push(triangulate_parametric(&p.input(), n, min_spacing)?);
+        }
+        for ((request, options), share) in requests.iter_mut().zip(&rounds).zip(&shares) {
+            // A piece the grid nearly misses must not ask for an unbounded count.
+            let got = options.last().map_or(0, |m| m.interior.len()).max(1) as f64;
+            let cap = 4.0 * share + 16.0;
+            *request = (*request as f64 * share / got).min(cap).round() as usize;
+        }
+        // Close enough, or no closer than without this round's meshes.
+        let (_, miss) = closest_total(&rounds, interior);
+        if miss * 400 <= interior.max(1) || miss >= closest {
             break;
         }
-        if best.as_ref().is_none_or(|(m, _)| miss < *m) {
-            let done = miss * 400 <= interior.max(1);
-            for ((request, m), share) in requests.iter_mut().zip(&meshes).zip(&shares) {
-                // A piece the grid nearly misses must not ask for an unbounded count.
-                let got = m.interior.len().max(1) as f64;
-                let cap = 4.0 * share + 16.0;
-                *request = (*request as f64 * share / got).min(cap).round() as usize;
-            }
-            best = Some((miss, meshes));
-            if done {
-                break;
-            }
-        } else {
-            break;
-        }
+        closest = miss;
     }
-    Ok(best.map(|(_, m)| m).unwrap_or_default())
+    let (chosen, _) = closest_total(&rounds, interior);
+    Ok(rounds
+        .into_iter()
+        .zip(chosen)
+        .map(|(mut options, round)| options.swap_remove(round))
+        .collect())
 }
+
+/// Which of its rounds' meshes each piece takes (`rounds[piece][round]`, every piece gridded
+/// in every round) for interior vertices totalling closest to `interior`, and the miss: the
+/// best whole round, then one piece's mesh swapped for another round's while that brings
+/// the total closer (the largest gain first, the first piece and round on a tie), at most
+/// [`MAX_ROUND_SWAPS`] times.
+fn closest_total(rounds: &[Vec<RegionMesh>], interior: usize) -> (Vec<usize>, usize) {
+    let count = |piece: usize, round: usize| rounds[piece][round].interior.len();
+    let round_count = rounds.iter().map(Vec::len).min().unwrap_or(0);
+    let total_of = |round: usize| (0..rounds.len()).map(|p| count(p, round)).sum::<usize>();
+    let Some(first) = (0..round_count).min_by_key(|&r| total_of(r).abs_diff(interior)) else {
+        return (vec![0; rounds.len()], interior);
+    };
+    let mut chosen = vec![first; rounds.len()];
+    let mut total = total_of(first);
+    for _ in 0..MAX_ROUND_SWAPS {
+        let mut best: Option<(usize, usize, usize)> = None;
+        for (piece, &now) in chosen.iter().enumerate() {
+            for round in 0..round_count {
+                let miss = (total - count(piece, now) + count(piece, round)).abs_diff(interior);
+                if miss < best.map_or(total.abs_diff(interior), |(m, _, _)| m) {
+                    best = Some((miss, piece, round));
+                }
+            }
+        }
+        let Some((_, piece, round)) = best else {
+            break;
+        };
+        total = total - count(piece, chosen[piece]) + count(piece, round);
+        chosen[piece] = round;
+    }
+    (chosen, total.abs_diff(interior))
+}
+
+/// Most swaps [`closest_total`] makes: each looks at every piece's every round, so a file
+/// of many pieces costs a bounded number of passes over them.
+const MAX_ROUND_SWAPS: usize = 64;
 
 /// Most gridding rounds of the parametric scheme.
 const PARAMETRIC_ROUNDS: usize = 4;
