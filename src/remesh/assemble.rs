@@ -1826,7 +1826,8 @@ fn triangulate_by_area(
     // ([`closest_total`]).
     let mut rounds: Vec<Vec<RegionMesh>> = vec![Vec::new(); pieces.len()];
     let mut requests = counts;
-    let mut closest = usize::MAX;
+    // The closest choice so far (a round per piece) and its miss.
+    let mut closest: Option<(Vec<usize>, usize)> = None;
     for _ in 0..PARAMETRIC_ROUNDS {
         for ((p, &n), options) in pieces.iter().zip(&requests).zip(&mut rounds) {
             options.push(triangulate_parametric(&p.input(), n, min_spacing)?);
@@ -1837,14 +1838,24 @@ fn triangulate_by_area(
             let cap = 4.0 * share + 16.0;
             *request = (*request as f64 * share / got).min(cap).round() as usize;
         }
+        let before = closest.as_ref().map_or(usize::MAX, |(_, miss)| *miss);
+        let mut candidates = vec![closest_total(&rounds, interior, None)];
+        if let Some((chosen, _)) = &closest {
+            candidates.push(closest_total(&rounds, interior, Some(chosen)));
+        }
+        let (chosen, miss) = candidates
+            .into_iter()
+            .min_by_key(|(_, miss)| *miss)
+            .unwrap_or_default();
         // Close enough, or no closer than without this round's meshes.
-        let (_, miss) = closest_total(&rounds, interior);
-        if miss * 400 <= interior.max(1) || miss >= closest {
+        if miss < before {
+            closest = Some((chosen, miss));
+        }
+        if miss * 400 <= interior.max(1) || miss >= before {
             break;
         }
-        closest = miss;
     }
-    let (chosen, _) = closest_total(&rounds, interior);
+    let chosen = closest.map(|(chosen, _)| chosen).unwrap_or_default();
     Ok(rounds
         .into_iter()
         .zip(chosen)
@@ -1853,19 +1864,28 @@ fn triangulate_by_area(
 }
 
 /// Which of its rounds' meshes each piece takes (`rounds[piece][round]`, every piece gridded
-/// in every round) for interior vertices totalling closest to `interior`, and the miss: the
-/// best whole round, then one piece's mesh swapped for another round's while that brings
-/// the total closer (the largest gain first, the first piece and round on a tie), at most
-/// [`MAX_ROUND_SWAPS`] times.
-fn closest_total(rounds: &[Vec<RegionMesh>], interior: usize) -> (Vec<usize>, usize) {
+/// in every round) for interior vertices totalling closest to `interior`, and the miss:
+/// from `start` (else the best whole round), one piece's mesh swapped for another round's
+/// while that brings the total closer (the largest gain first, the first piece and round
+/// on a tie), at most [`MAX_ROUND_SWAPS`] times.
+fn closest_total(
+    rounds: &[Vec<RegionMesh>],
+    interior: usize,
+    start: Option<&[usize]>,
+) -> (Vec<usize>, usize) {
     let count = |piece: usize, round: usize| rounds[piece][round].interior.len();
     let round_count = rounds.iter().map(Vec::len).min().unwrap_or(0);
     let total_of = |round: usize| (0..rounds.len()).map(|p| count(p, round)).sum::<usize>();
-    let Some(first) = (0..round_count).min_by_key(|&r| total_of(r).abs_diff(interior)) else {
-        return (vec![0; rounds.len()], interior);
+    let mut chosen = match start {
+        Some(start) if start.len() == rounds.len() && start.iter().all(|&r| r < round_count) => {
+            start.to_vec()
+        }
+        _ => match (0..round_count).min_by_key(|&r| total_of(r).abs_diff(interior)) {
+            Some(first) => vec![first; rounds.len()],
+            None => return (vec![0; rounds.len()], interior),
+        },
     };
-    let mut chosen = vec![first; rounds.len()];
-    let mut total = total_of(first);
+    let mut total: usize = chosen.iter().enumerate().map(|(p, &r)| count(p, r)).sum();
     for _ in 0..MAX_ROUND_SWAPS {
         let mut best: Option<(usize, usize, usize)> = None;
         for (piece, &now) in chosen.iter().enumerate() {
