@@ -1847,10 +1847,10 @@ fn triangulate_by_area(
             .into_iter()
             .min_by_key(|(_, miss)| *miss)
             .unwrap_or_default();
-        // Close enough, or no closer than without this round's meshes.
         if miss < before {
             closest = Some((chosen, miss));
         }
+        // Close enough, or no closer than without this round's meshes.
         if miss * 400 <= interior.max(1) || miss >= before {
             break;
         }
