@@ -497,9 +497,9 @@ fn parametric_grid_is_a_valid_mesh_near_the_requested_size() {
 /// Near the grid's poles a row's azimuths are thinned (at most `POLE_ROW_SPACINGS` times
 /// closer than the plain grid's step): with 2·rows azimuths in every row, the rows round a
 /// pole inside the region crowded their points, and the triangles between neighbours in a
-/// row were slivers (hand K = 18 at 200 000 vertices: 1 040 below 10⁻¹⁴ of the squared
-/// diagonal). Here the smallest triangle of a dense grid over a cap holding a grid pole is
-/// not far below the median one.
+/// row were slivers (hand's file at its default K, 12 regions, at 200 000 vertices: 1 040
+/// below 10⁻¹⁴ of the squared diagonal). Here the smallest triangle of a dense grid over a
+/// cap holding a grid pole is not far below the median one.
 #[test]
 fn parametric_grid_rows_do_not_crowd_at_its_poles() {
     let e = ellipsoid(Sign::Positive);

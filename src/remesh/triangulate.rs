@@ -1386,10 +1386,11 @@ impl RegionCdt {
     ///
     /// The grid's poles are the ends of the ellipsoid's local z axis. With 2·`rows`
     /// azimuths in every row (the plain grid), a region holding one crowded the rows round
-    /// it, and the triangles between neighbours in a row were slivers: hand's file at
-    /// K = 18 meshed at 200 000 vertices had 1 040 triangles of less than 10⁻¹⁴ of the
-    /// squared diagonal (neighbours 2·10⁻⁶ of the diagonal apart) in one region, and took
-    /// 11 meshings (27 s) to find a treatment without them; now one (1.8 s).
+    /// it, and the triangles between neighbours in a row were slivers: hand's file at its
+    /// default K (12 regions) meshed at 200 000 vertices had 1 040 triangles of less than
+    /// 10⁻¹⁴ of the squared diagonal (neighbours 2·10⁻⁶ of the diagonal apart) in one
+    /// region, and took 11 meshings (27 s) to find a treatment without them; now one
+    /// (1.8 s).
     fn grid_points(&self, rows: f64) -> Vec<DVec2> {
         use std::f64::consts::{FRAC_PI_2, PI};
         let (low, high) = self.elevation_range();
