@@ -1839,16 +1839,16 @@ fn triangulate_by_area(
             *request = (*request as f64 * share / got).min(cap).round() as usize;
         }
         let before = closest.as_ref().map_or(usize::MAX, |(_, miss)| *miss);
-        let mut candidates = vec![closest_total(&rounds, interior, None)];
+        let mut found = closest_total(&rounds, interior, None);
         if let Some((chosen, _)) = &closest {
-            candidates.push(closest_total(&rounds, interior, Some(chosen)));
+            let from_closest = closest_total(&rounds, interior, Some(chosen));
+            if from_closest.1 < found.1 {
+                found = from_closest;
+            }
         }
-        let (chosen, miss) = candidates
-            .into_iter()
-            .min_by_key(|(_, miss)| *miss)
-            .unwrap_or_default();
+        let miss = found.1;
         if miss < before {
-            closest = Some((chosen, miss));
+            closest = Some(found);
         }
         // Close enough, or no closer than without this round's meshes.
         if miss * 400 <= interior.max(1) || miss >= before {
