@@ -1028,24 +1028,68 @@ fn rms_to(source: &Mesh, mesh: &Mesh) -> f64 {
     (sum / source.vertex_count() as f64).sqrt() / diagonal(source)
 }
 
+/// RMS distance (fraction of the diagonal) from `out`'s surface to the representation's:
+/// each face sampled at its centroid, its edges' midpoints and three points between (area
+/// weighted), each sample's distance to the closest point of its region's ellipsoid.
+fn rms_to_ellipsoids(rep: &Representation, out: &Remeshed, diagonal: f64) -> f64 {
+    let positions = out.mesh.positions();
+    let (mut sum, mut area) = (0.0, 0.0);
+    for (face, &region) in out.mesh.faces().iter().zip(&out.face_regions) {
+        let [a, b, c] = face.map(|v| positions[v as usize]);
+        let e = &rep.ellipsoids[region as usize];
+        let samples = [
+            (a + b + c) / 3.0,
+            (a + b) / 2.0,
+            (b + c) / 2.0,
+            (c + a) / 2.0,
+            (4.0 * a + b + c) / 6.0,
+            (a + 4.0 * b + c) / 6.0,
+            (a + b + 4.0 * c) / 6.0,
+        ];
+        let squared: f64 = samples
+            .iter()
+            .map(|&x| x.distance_squared(e.closest_point(x)))
+            .sum();
+        let face_area = 0.5 * (b - a).cross(c - a).length();
+        sum += face_area * squared / samples.len() as f64;
+        area += face_area;
+    }
+    (sum / area).sqrt() / diagonal
+}
+
 /// The paper's Figure 8 claim, measured: at an equal vertex count the adaptive scheme is
-/// closer to the surface than the parametric grid.
+/// closer to the representation's surface (the ellipsoids the remesher approximates) than
+/// the parametric grid. Measured at 1 500 and 5 000 vertices: adaptive RMS 0.87–0.93 of the
+/// grid's on the four blobs; asserted at most 0.95.
+///
+/// Not measured against the source: there the fit's own error (about 0.1 % of the diagonal)
+/// is ten times the schemes' difference, and which scheme comes closer is a coin toss: at
+/// 1 000, 1 500, 2 000, 3 000 and 5 000 vertices on the four blobs the grid came closer to
+/// the source 11 times in 20 (symmetric RMS, `ellip compare`); at 1 500, which this test
+/// asserted, blob4's source vertices were 0.00093 of the diagonal from both.
 #[test]
 fn adaptive_beats_parametric_at_equal_vertex_count() {
     for name in ["blob1.obj", "blob2.obj", "blob3.obj", "blob4.obj"] {
         let mesh = source(name);
         let (_, rep) = encode(&mesh, blob_ellipsoids(name));
-        // The grid's count is close to the budget; the adaptive scheme is given exactly it.
-        let parametric = remesh(&rep, &options(1500, Scheme::Parametric)).unwrap();
-        let count = parametric.mesh.vertex_count();
-        let adaptive = remesh(&rep, &options(count, Scheme::Adaptive)).unwrap();
-        assert_eq!(adaptive.mesh.vertex_count(), count, "{name}");
-        let (a, p) = (
-            rms_to(&mesh, &adaptive.mesh),
-            rms_to(&mesh, &parametric.mesh),
-        );
-        println!("{name}: {count} vertices, RMS adaptive {a:.5}, parametric {p:.5}");
-        assert!(a < p, "{name}: adaptive {a} vs parametric {p}");
+        for budget in [1500, 5000] {
+            // The grid's count is close to the budget; the adaptive scheme is given exactly it.
+            let parametric = remesh(&rep, &options(budget, Scheme::Parametric)).unwrap();
+            let count = parametric.mesh.vertex_count();
+            let adaptive = remesh(&rep, &options(count, Scheme::Adaptive)).unwrap();
+            assert_eq!(adaptive.mesh.vertex_count(), count, "{name}");
+            let diagonal = diagonal(&mesh);
+            let (a, p) = (
+                rms_to_ellipsoids(&rep, &adaptive, diagonal),
+                rms_to_ellipsoids(&rep, &parametric, diagonal),
+            );
+            println!(
+                "{name}: {count} vertices, RMS to the ellipsoids adaptive {a:.3e}, \
+                 parametric {p:.3e} ({:.3})",
+                a / p
+            );
+            assert!(a <= 0.95 * p, "{name}: adaptive {a} vs parametric {p}");
+        }
     }
 }
 
