@@ -1243,17 +1243,66 @@ impl RegionCdt {
     fn insert_grid(&mut self, interior_vertices: usize) {
         let target = interior_vertices as f64;
         let share = self.sphere_share().clamp(1e-12, 1.0);
-        let asked = (target / (2.0 * share)).sqrt().ceil();
-        let rows = self.grid_rows(asked, interior_vertices);
-        let mut points = self.grid_points(rows);
+        let mut asked = (target / (2.0 * share)).sqrt().ceil();
+        let mut rows = self.grid_rows(asked, interior_vertices);
+        let mut points = self.grid_points(rows, 1.0);
+        // The rows resized by the miss (the share is an estimate, and a region's span of
+        // elevations is not a whole sphere's), a few times, the closest grid kept.
+        let (mut tried_rows, mut tried) = (rows, points.len());
+        for _ in 0..MAX_ROW_RESIZES {
+            let ratio = target / tried.max(1) as f64;
+            if tried == 0 || (0.9..=1.1).contains(&ratio) {
+                break;
+            }
+            asked = (asked * ratio.sqrt()).ceil();
+            // The same rows (both capped, as for a region whose share is far
+            // underestimated) give the same grid: it is not made again.
+            let resized = self.grid_rows(asked, interior_vertices);
+            if resized == tried_rows {
+                break;
+            }
+            let found = self.grid_points(resized, 1.0);
+            (tried_rows, tried) = (resized, found.len());
+            if found.len().abs_diff(interior_vertices) < points.len().abs_diff(interior_vertices) {
+                (rows, points) = (resized, found);
+            }
+        }
+        // A band narrower than a row gets no grid point at the rows its share asks for: the
+        // rows are doubled until one fits (a few times), and its azimuths thinned to the
+        // target below.
+        if points.is_empty() {
+            let mut denser = rows;
+            for _ in 0..MAX_ROW_DOUBLINGS {
+                let more = self.grid_rows(2.0 * denser, interior_vertices);
+                if more <= denser {
+                    break;
+                }
+                denser = more;
+                let found = self.grid_points(denser, 1.0);
+                if !found.is_empty() {
+                    (rows, points) = (denser, found);
+                    break;
+                }
+            }
+        }
+        // Whole rows come near the target, not to it (a row of a grid of 50 is about 4 % of
+        // its points): the azimuths are scaled by the miss, the cells a little off square,
+        // and the closer grid kept. Where no rows came within 10 % (a band a few rows wide,
+        // whose count jumps by a row at a time), they are scaled more.
         if !points.is_empty() {
-            let ratio = target / points.len() as f64;
-            if !(0.9..=1.1).contains(&ratio) {
-                // The same rows (both capped, as for a region whose share is far
-                // underestimated) give the same grid: it is not made again.
-                let resized = self.grid_rows((asked * ratio.sqrt()).ceil(), interior_vertices);
-                if resized != rows {
-                    points = self.grid_points(resized);
+            let scale = target / points.len() as f64;
+            let most = if (0.9..=1.1).contains(&scale) {
+                MAX_AZIMUTH_SCALE
+            } else {
+                MAX_BAND_AZIMUTH_SCALE
+            };
+            let room = self.azimuth_room(rows, interior_vertices).min(most);
+            if (scale - 1.0).abs() > AZIMUTH_SCALE_SLACK {
+                let scaled = self.grid_points(rows, scale.clamp(1.0 / most, room));
+                if scaled.len().abs_diff(interior_vertices)
+                    < points.len().abs_diff(interior_vertices)
+                {
+                    points = scaled;
                 }
             }
         }
@@ -1312,6 +1361,27 @@ impl RegionCdt {
 /// grid but near its poles.
 const POLE_ROW_SPACINGS: f64 = 4.0;
 
+/// How far from its target a grid's count may be before [`RegionCdt::insert_grid`] scales its
+/// azimuths (a share of the target).
+const AZIMUTH_SCALE_SLACK: f64 = 0.002;
+
+/// The most [`RegionCdt::insert_grid`] scales a grid's azimuths by (or divides them by): its
+/// cells stay within a quarter of square.
+const MAX_AZIMUTH_SCALE: f64 = 1.25;
+
+/// The most [`RegionCdt::insert_grid`] scales a grid's azimuths by (or divides them by)
+/// where no rows come within 10 % of the target: a band a few rows wide (a band narrower
+/// than a row of the grid its share asks for is gridded with rows denser by up to
+/// 2^[`MAX_ROW_DOUBLINGS`] until a row fits, and that row thinned to its share).
+const MAX_BAND_AZIMUTH_SCALE: f64 = 8.0;
+
+/// How many times [`RegionCdt::insert_grid`] doubles the rows for a band no row fits in.
+const MAX_ROW_DOUBLINGS: usize = 4;
+
+/// How many times [`RegionCdt::insert_grid`] resizes the rows by a grid's miss (more than
+/// 10 %) before it scales the azimuths.
+const MAX_ROW_RESIZES: usize = 3;
+
 /// Relative size of the nudge [`nudge_grid_point`] gives each grid point in the chart.
 const GRID_NUDGE: f64 = 1e-9;
 
@@ -1364,25 +1434,39 @@ impl RegionCdt {
     /// `target` points: whole, at least 2, and few enough that at most
     /// max(16·`target`, [`MIN_GRID_BUDGET`]) grid points are tested.
     fn grid_rows(&self, rows: f64, target: usize) -> f64 {
-        let (low, high) = self.elevation_range();
-        let budget = (16.0 * target as f64).max(MIN_GRID_BUDGET);
+        let (budget, span) = self.grid_budget(target);
         // Rows within the range times 2·rows azimuths must stay within the budget, and a band
         // narrower than one row still costs a whole row: 2·rows azimuths at most the budget
         // (a hostile sliver of a region spanning 10⁻⁹ of the elevations asked for 5.7 million
         // rows, and tested 11 million azimuths in each of the rows it crossed: 16 s).
-        let span = ((high - low) / std::f64::consts::PI).clamp(1e-9, 1.0);
         rows.min((budget / (2.0 * span)).sqrt())
             .min(budget / 2.0)
             .max(2.0)
             .floor()
     }
 
+    /// How many times more azimuths than 2·`rows` a grid for a target of `target` points may
+    /// test within the budget of [`Self::grid_rows`] (at least 1).
+    fn azimuth_room(&self, rows: f64, target: usize) -> f64 {
+        let (budget, span) = self.grid_budget(target);
+        (budget / (2.0 * rows * (rows * span).max(1.0))).max(1.0)
+    }
+
+    /// The most grid points a grid for a target of `target` points may test, and the share
+    /// of the elevations the region spans.
+    fn grid_budget(&self, target: usize) -> (f64, f64) {
+        let (low, high) = self.elevation_range();
+        let budget = (16.0 * target as f64).max(MIN_GRID_BUDGET);
+        let span = ((high - low) / std::f64::consts::PI).clamp(1e-9, 1.0);
+        (budget, span)
+    }
+
     /// The grid points with `rows` elevations (as [`Self::grid_rows`] gives them) and
-    /// 2·`rows` azimuths in each row, fewer near the poles (no closer than a
-    /// [`POLE_ROW_SPACINGS`]th of the plain grid's azimuth step, at least one per row), that
-    /// lie inside the region (in an inside face of the boundary-only triangulation) and at
-    /// least half an elevation step from every boundary edge, as chart positions, row by
-    /// row.
+    /// 2·`rows`·`azimuth_scale` azimuths in each row (`azimuth_scale` 1 for the paper's
+    /// square cells), fewer near the poles (no closer than a [`POLE_ROW_SPACINGS`]th of that
+    /// azimuth step, at least one per row), that lie inside the region (in an inside face of
+    /// the boundary-only triangulation) and at least half an elevation step from every
+    /// boundary edge, as chart positions, row by row.
     ///
     /// The grid's poles are the ends of the ellipsoid's local z axis. With 2·`rows`
     /// azimuths in every row (the plain grid), a region holding one crowded the rows round
@@ -1391,7 +1475,7 @@ impl RegionCdt {
     /// 10⁻¹⁴ of the squared diagonal (neighbours 2·10⁻⁶ of the diagonal apart) in one
     /// region, and took 11 meshings (27 s) to find a treatment without them; now one
     /// (1.8 s).
-    fn grid_points(&self, rows: f64) -> Vec<DVec2> {
+    fn grid_points(&self, rows: f64, azimuth_scale: f64) -> Vec<DVec2> {
         use std::f64::consts::{FRAC_PI_2, PI};
         let (low, high) = self.elevation_range();
         let step = PI / rows;
@@ -1419,8 +1503,9 @@ impl RegionCdt {
             let (sin_el, cos_el) = elevation.sin_cos();
             hint = row_start.or(hint);
             row_start = None;
-            let columns = (2.0 * rows)
-                .min((POLE_ROW_SPACINGS * 2.0 * rows * cos_el).round())
+            let columns = (azimuth_scale * 2.0 * rows)
+                .min(POLE_ROW_SPACINGS * azimuth_scale * 2.0 * rows * cos_el)
+                .round()
                 .max(1.0);
             let azimuth_step = 2.0 * PI / columns;
             for j in 0..columns as usize {
@@ -1852,7 +1937,7 @@ mod tests {
                     }
                 }
                 assert!(expected.len() > 4, "{rows} rows: {}", expected.len());
-                assert_eq!(cdt.grid_points(rows), expected, "{rows} rows");
+                assert_eq!(cdt.grid_points(rows, 1.0), expected, "{rows} rows");
             }
         }
     }
