@@ -647,13 +647,20 @@ fn the_vertex_budget_is_honoured_within_one_percent() {
 fn the_parametric_grid_meets_the_budget_by_each_pieces_rounds() {
     let (_, rep) = encode(&source("torus.obj"), 12);
     for budget in [5_000, 20_000] {
-        let out = remesh(&rep, &options(budget, Scheme::Parametric)).unwrap();
-        let n = out.mesh.vertex_count();
-        let context = format!("{budget}: {n} vertices");
-        assert!(n.abs_diff(budget) * 100 <= budget, "{context}");
-        assert_clean(&out, &context);
-        assert_closed(&out, &context);
+        assert_parametric_budget_met(&rep, budget, "torus K = 12");
     }
+}
+
+/// Decodes `rep` parametrically at `budget` vertices and asserts the mesh within 1 % of it,
+/// clean and closed.
+fn assert_parametric_budget_met(rep: &Representation, budget: usize, what: &str) {
+    let out = remesh(rep, &options(budget, Scheme::Parametric)).unwrap();
+    let n = out.mesh.vertex_count();
+    let context = format!("{what} at {budget}: {n} vertices");
+    println!("{context}");
+    assert!(n.abs_diff(budget) * 100 <= budget, "{context}");
+    assert_clean(&out, &context);
+    assert_closed(&out, &context);
 }
 
 /// A single piece's grid meets its budget within 1 % too, though a whole row of it is about
@@ -665,12 +672,7 @@ fn a_single_pieces_grid_meets_the_budget_by_its_azimuths() {
     let bytes = std::fs::read(root().join("fixtures/ellip/v1/sphere.ellip")).unwrap();
     let rep = decode(&bytes, &Limits::default()).unwrap();
     for budget in [1_000, 3_000, 5_000, 10_000, 30_000] {
-        let out = remesh(&rep, &options(budget, Scheme::Parametric)).unwrap();
-        let n = out.mesh.vertex_count();
-        let context = format!("{budget}: {n} vertices");
-        assert!(n.abs_diff(budget) * 100 <= budget, "{context}");
-        assert_clean(&out, &context);
-        assert_closed(&out, &context);
+        assert_parametric_budget_met(&rep, budget, "the sphere fixture");
     }
 }
 
@@ -685,13 +687,7 @@ fn small_pieces_and_bands_meet_the_parametric_budget() {
     let capsule = source("capsule.obj");
     for (k, budget) in [(3, 1_000), (6, 5_000), (12, 5_000)] {
         let (_, rep) = encode(&capsule, k);
-        let out = remesh(&rep, &options(budget, Scheme::Parametric)).unwrap();
-        let n = out.mesh.vertex_count();
-        let context = format!("K = {k}, {budget}: {n} vertices");
-        println!("{context}");
-        assert!(n.abs_diff(budget) * 100 <= budget, "{context}");
-        assert_clean(&out, &context);
-        assert_closed(&out, &context);
+        assert_parametric_budget_met(&rep, budget, &format!("capsule K = {k}"));
     }
 }
 
