@@ -1271,8 +1271,9 @@ fn flat_capped_cylinder_obj() -> String {
 
 /// `ellip decode --json` reports the budget it was asked for, and a decode more than 1 %
 /// short of it says so on standard error (and only then). The flat-capped cylinder's
-/// parametric grid gives 3 086 vertices at 5 000; vertex addition meets the budget. (Once
-/// the sphere fixture's 9 829 at 10 000; its grid's azimuths now meet the count.)
+/// parametric grid gives 4 275 vertices at 5 000 (3 952 before the grid's azimuths were
+/// scaled); vertex addition meets the budget. (Once the sphere fixture's 9 829 at 10 000;
+/// its grid now meets the count.)
 #[test]
 fn a_decode_short_of_its_budget_says_so() {
     let dir = scratch("short");
