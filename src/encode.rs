@@ -1324,7 +1324,13 @@ fn represent(
         .map(|a| arc_fidelity(a.left, a.right.region()) == Fidelity::Exact)
         .collect();
     let store = |representation: &Representation, absolute_tolerance: f64, bits: u8| {
-        store(representation, absolute_tolerance, bits, &exact_arcs)
+        store(
+            representation,
+            absolute_tolerance,
+            bits,
+            &exact_arcs,
+            &specks,
+        )
     };
     let stored = match settings.bits {
         Some(bits) => store(&representation, absolute_tolerance, bits)?,
@@ -1433,6 +1439,7 @@ fn store(
     absolute_tolerance: f64,
     bits: u8,
     exact: &[bool],
+    specks: &[bool],
 ) -> Result<Stored, EncodeMeshError> {
     let mut representation = representation.clone();
     // The boundary tolerance bounds a stored point's whole error: Douglas–Peucker gets what
@@ -1455,13 +1462,73 @@ fn store(
     } else {
         0
     };
-    let bytes = format::encode(&representation, &EncodeOptions { bits })?;
+    let options = EncodeOptions { bits };
+    let mut bytes = format::encode(&representation, &options)?;
+    let turned = if specks.contains(&true) {
+        turned_specks(&format::decode(&bytes, &format::Limits::default())?, specks)
+    } else {
+        Vec::new()
+    };
+    if !turned.is_empty() {
+        for r in turned {
+            if let Some(e) = representation.ellipsoids.get_mut(r) {
+                *e = e.flipped();
+            }
+        }
+        bytes = format::encode(&representation, &options)?;
+    }
     Ok(Stored {
         bytes,
         representation,
         removed_points,
         bits,
     })
+}
+
+/// The specks (`specks[r]`: region r is one, see [`speck_faces`]) whose boundary, as
+/// `stored` holds it, winds against their ellipsoid: its area vector (Newell's, over all
+/// its loops) points against the ellipsoid's signed normal at the loops' centroid.
+///
+/// A speck is stored as the mesh has it and fitted with a sphere tangent to it on the side
+/// its faces face, so it decodes as its own triangles; but a sliver no higher than a step of
+/// the point grid can come out of the grid wound the other way, and then it decodes turned
+/// against its sphere. Such a speck's sphere is stored with the other sign ([`store`]): the
+/// same surface, its normal the other way. On Stanford's dragon from npm at `res3`, whose
+/// pairs of triangles on the same three points wound either way are such slivers, 8 of the
+/// 11 flipped triangles of the encoder's file were specks turned so.
+fn turned_specks(stored: &Representation, specks: &[bool]) -> Vec<usize> {
+    let mut turned = Vec::new();
+    for (r, cycles) in stored.cycles.iter().enumerate() {
+        let (Some(true), Some(e)) = (specks.get(r).copied(), stored.ellipsoids.get(r)) else {
+            continue;
+        };
+        let mut area = DVec3::ZERO;
+        let mut sum = DVec3::ZERO;
+        let mut count = 0usize;
+        for cycle in cycles {
+            let mut points: Vec<DVec3> = Vec::new();
+            for a in &cycle.arcs {
+                let Some(mut arc) = stored.arc_positions(a.arc as usize) else {
+                    continue;
+                };
+                if a.reversed {
+                    arc.reverse();
+                }
+                // Consecutive arcs share their junctions (a closed arc repeats none).
+                let closed = stored.arcs.get(a.arc as usize).is_some_and(|a| a.closed);
+                points.extend(arc.into_iter().skip(usize::from(!closed)));
+            }
+            for (k, &p) in points.iter().enumerate() {
+                area += p.cross(points[(k + 1) % points.len()]);
+            }
+            sum += points.iter().sum::<DVec3>();
+            count += points.len();
+        }
+        if count > 0 && e.normal_side().along(sum / count as f64, area) < 0.0 {
+            turned.push(r);
+        }
+    }
+    turned
 }
 
 // ---------------------------------------------------------------------------------------

@@ -589,6 +589,67 @@ fn specks_decode_where_they_were_and_unflipped() {
     }
 }
 
+/// A speck thinner than the point grid's step can come out of the grid turned over: the
+/// dragon from npm at `res3` has pairs of triangles on the same three points wound either
+/// way, slivers a grid step high, and quantised, 8 of its 11 flipped triangles were such
+/// specks turned against the spheres fitted to their source triangles. Here a sliver whose
+/// grid positions wind the other way (in grid steps: (0, 0.45), (4, 1.55), (2.6, 1.3) round
+/// to (0, 0), (4, 2), (3, 1)) beside a sphere, on a 10-bit grid the two corner specks fix:
+/// stored, its sphere has the other sign, and it decodes unflipped.
+#[test]
+fn a_speck_the_grid_turns_over_decodes_unflipped() {
+    let sphere = ellip::synth::shapes::icosphere(1.0, 3);
+    let mut positions = sphere.positions().to_vec();
+    let mut faces = sphere.faces().to_vec();
+    let step = 4.0 / 1023.0;
+    let at = |x: f64, y: f64| DVec3::new(-2.0 + (600.0 + x) * step, -2.0 + (700.0 + y) * step, 1.5);
+    for corners in [
+        [
+            DVec3::splat(-2.0),
+            DVec3::new(-1.9, -2.0, -2.0),
+            DVec3::new(-2.0, -1.9, -2.0),
+        ],
+        [
+            DVec3::splat(2.0),
+            DVec3::new(2.0, 1.9, 2.0),
+            DVec3::new(1.9, 2.0, 2.0),
+        ],
+        [at(0.0, 0.45), at(4.0, 1.55), at(2.6, 1.3)],
+    ] {
+        let first = positions.len() as u32;
+        positions.extend(corners);
+        faces.push([first, first + 1, first + 2]);
+    }
+    let mesh = Mesh::new(positions, faces).unwrap();
+    let specks = ellip::segment::proxy::speck_faces(&mesh);
+    assert_eq!(specks.iter().filter(|&&s| s).count(), 3);
+    let settings = EncodeSettings {
+        verify: false,
+        bits: Some(10),
+        ..EncodeSettings::default()
+    };
+    let encoded = encode_mesh(&mesh, &settings, &mut |_| {}).unwrap();
+    let rep = decode(&encoded.bytes, &Limits::default()).unwrap();
+    // The sliver's stored corners wind the other way round +z.
+    let stored = |p: DVec3| {
+        rep.points
+            .iter()
+            .copied()
+            .min_by(|a, b| a.distance(p).total_cmp(&b.distance(p)))
+            .unwrap()
+    };
+    let [a, b, c] = [at(0.0, 0.45), at(4.0, 1.55), at(2.6, 1.3)].map(stored);
+    assert!(a.distance(at(0.0, 0.45)) < step, "{a}");
+    assert!((b - a).cross(c - a).z < 0.0, "{a} {b} {c}");
+    let out = ellip::remesh::remesh(&rep, &ellip::remesh::RemeshOptions::default()).unwrap();
+    let c = out.check;
+    assert_eq!(
+        (c.flipped, c.degenerate, c.omitted_regions),
+        (0, 0, 0),
+        "{c:?}"
+    );
+}
+
 /// A cube, the first mesh many people try: each of its twelve triangles a region on the
 /// sphere through the corners (the corners' averaged normals are the sphere's), every
 /// boundary an arc of one edge between two corners. Boundary smoothing pulled each corner
