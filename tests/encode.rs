@@ -549,18 +549,34 @@ fn sphere_with_specks() -> (Mesh, Vec<DVec3>) {
         faces.push([first, first + 1, first + 2]);
         speck_points.extend(corners);
     }
+    // Two triangles folded along their shared edge, open and not flat: a piece of Stanford's
+    // dragon at `res3` (its corners, moved and scaled 20 times).
+    let first = positions.len() as u32;
+    let folded = [
+        [-0.0878745, 0.0601804, -0.0207355],
+        [-0.0880203, 0.0585681, -0.0207129],
+        [-0.0871673, 0.0600944, -0.0220295],
+        [-0.0858736, 0.0603059, -0.0224792],
+    ]
+    .map(|p| {
+        DVec3::new(0.0, 0.0, 1.6) + 20.0 * (DVec3::from_array(p) - DVec3::new(-0.087, 0.06, -0.021))
+    });
+    positions.extend(folded);
+    faces.extend([[first, first + 1, first + 2], [first, first + 2, first + 3]]);
+    speck_points.extend(folded);
     (Mesh::new(positions, faces).unwrap(), speck_points)
 }
 
-/// Specks (pieces with fewer vertices than an ellipsoid has parameters) are fitted with
-/// spheres tangent to them and stored as the mesh has them: they decode where they were,
-/// none turned over, even without the encoder's check. (Stanford's dragon at `res4` has 351
-/// one-triangle pieces; fitted with ellipsoids and smoothed, 38 of them decoded flipped.)
+/// Specks (pieces with fewer vertices than an ellipsoid has parameters, flat or open) are
+/// fitted with spheres tangent to them and stored as the mesh has them: they decode where
+/// they were, none turned over, even without the encoder's check. (Stanford's dragon at
+/// `res4` has 351 one-triangle pieces; fitted with ellipsoids and smoothed, 38 of them
+/// decoded flipped.)
 #[test]
 fn specks_decode_where_they_were_and_unflipped() {
     let (mesh, speck_points) = sphere_with_specks();
     let specks = ellip::segment::proxy::speck_faces(&mesh);
-    assert_eq!(specks.iter().filter(|&&s| s).count(), 8);
+    assert_eq!(specks.iter().filter(|&&s| s).count(), 10);
     assert!(specks[..1280].iter().all(|&s| !s));
     let settings = EncodeSettings {
         verify: false,
@@ -576,6 +592,22 @@ fn specks_decode_where_they_were_and_unflipped() {
         (0, 0, 0),
         "{c:?}"
     );
+    // The folded pair's analytic normals face its own way (the normal of its corners on a
+    // needle through them points anywhere).
+    let folded = &speck_points[speck_points.len() - 4..];
+    let facing = (folded[1] - folded[0]).cross(folded[2] - folded[0])
+        + (folded[2] - folded[0]).cross(folded[3] - folded[0]);
+    for &p in folded {
+        let (nearest, _) = out
+            .mesh
+            .positions()
+            .iter()
+            .enumerate()
+            .min_by(|a, b| a.1.distance(p).total_cmp(&b.1.distance(p)))
+            .unwrap();
+        let along = out.normals[nearest].dot(facing.normalize());
+        assert!(along > 0.5, "{p}: normal {along} along the pair's own");
+    }
     // Every speck's corner is a decoded vertex (to within the grid: 12 bits or more over a
     // box 3.3 across).
     for p in speck_points {
