@@ -1493,9 +1493,9 @@ fn store(
 /// its faces face, so it decodes as its own triangles; but a sliver no higher than a step of
 /// the point grid can come out of the grid wound the other way, and then it decodes turned
 /// against its sphere. Such a speck's sphere is stored with the other sign ([`store`]): the
-/// same surface, its normal the other way. On Stanford's dragon from npm at `res3`, whose
-/// pairs of triangles on the same three points wound either way are such slivers, 8 of the
-/// 11 flipped triangles of the encoder's file were specks turned so.
+/// same surface, its normal the other way. Stanford's dragon from npm at `res3`, whose pairs
+/// of triangles on the same three points wound either way are such slivers, decoded with
+/// 5 flipped triangles instead of 11 (the encoder's file at its default K).
 fn turned_specks(stored: &Representation, specks: &[bool]) -> Vec<usize> {
     let mut turned = Vec::new();
     for (r, cycles) in stored.cycles.iter().enumerate() {

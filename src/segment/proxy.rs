@@ -133,17 +133,9 @@ pub fn speck_faces(mesh: &Mesh) -> Vec<bool> {
             .collect();
         is_flat(&points)
     };
-    let mut open = vec![false; vertices.len()];
-    for (f, &c) in labels.iter().enumerate() {
-        if (0..3).any(|k| topology.is_border_edge(f, k)) {
-            if let Some(o) = open.get_mut(c as usize) {
-                *o = true;
-            }
-        }
-    }
     let specks: Vec<bool> = vertices
         .iter()
-        .zip(&open)
+        .zip(&open_pieces(mesh))
         .map(|(l, &open)| l.len() < MIN_ELLIPSOID_SAMPLES && (open || flat(l)))
         .collect();
     labels
@@ -190,12 +182,9 @@ impl SmallSolids {
                 list.push(f);
             }
         }
-        let solid = |(list, seen): (&Vec<usize>, &Vec<u32>)| {
-            let closed = || {
-                list.iter()
-                    .all(|&f| (0..3).all(|k| !topology.is_border_edge(f, k)))
-            };
-            if seen.len() >= MIN_ELLIPSOID_SAMPLES || !closed() {
+        let open = open_pieces(mesh);
+        let solid = |((list, seen), &open): ((&Vec<usize>, &Vec<u32>), &bool)| {
+            if seen.len() >= MIN_ELLIPSOID_SAMPLES || open {
                 return None;
             }
             let triangles: Vec<[DVec3; 3]> = list.iter().map(|&f| mesh.corners(f)).collect();
@@ -203,7 +192,7 @@ impl SmallSolids {
         };
         SmallSolids {
             piece_of_face: labels.to_vec(),
-            solids: faces.iter().zip(&vertices).map(solid).collect(),
+            solids: faces.iter().zip(&vertices).zip(&open).map(solid).collect(),
         }
     }
 
@@ -218,6 +207,22 @@ impl SmallSolids {
                 .all(|&f| self.piece_of_face.get(f as usize) == Some(&piece)))
         .then_some(ellipsoid)
     }
+}
+
+/// Per piece (edge-connected component) of `mesh`, whether it is open: some face of it has
+/// a border edge (an edge with no other face, where import may have cut a non-manifold
+/// edge).
+fn open_pieces(mesh: &Mesh) -> Vec<bool> {
+    let topology = mesh.topology();
+    let mut open = vec![false; topology.component_count()];
+    for (f, &c) in topology.face_components().iter().enumerate() {
+        if (0..3).any(|k| topology.is_border_edge(f, k)) {
+            if let Some(o) = open.get_mut(c as usize) {
+                *o = true;
+            }
+        }
+    }
+    open
 }
 
 /// Per piece (edge-connected component) of `mesh`, its vertices in order of first use, up
