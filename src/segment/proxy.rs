@@ -117,7 +117,7 @@ pub struct EllipsoidMetric {
 /// edge is cut off on import). A speck is a region of its own, fitted with a tangent sphere
 /// ([`fit_tangent_sphere`]), and its boundary is stored as the mesh has it. Small closed
 /// pieces with depth (the head scan from npm's `snowden` has boxes of seven triangles) bound
-/// a solid, whose ellipsoid they get ([`SmallSolids`]), and are not specks. An open one
+/// a solid, whose ellipsoid they get (`SmallSolids`), and are not specks. An open one
 /// with depth, two triangles folded along their shared edge, leaves an ellipsoid through its
 /// four corners free: Stanford's dragon at `res3` has six, fitted with needles 265 long in
 /// a model 0.2 across, two of which decoded turned over.
