@@ -112,15 +112,17 @@ pub struct EllipsoidMetric {
 
 /// Per face, whether it lies in a speck: a piece of the mesh (an edge-connected component)
 /// with fewer vertices than an ellipsoid has parameters ([`MIN_ELLIPSOID_SAMPLES`]) that is
-/// flat (no thicker than [`SPECK_THICKNESS`] of its extent) or open (a border edge): the
-/// fins, loose triangles and folded pairs of triangles of a scan (a face on a non-manifold
-/// edge is cut off on import). A speck is a region of its own, fitted with a tangent sphere
-/// ([`fit_tangent_sphere`]), and its boundary is stored as the mesh has it. Small closed
-/// pieces with depth (the head scan from npm's `snowden` has boxes of seven triangles) bound
-/// a solid, whose ellipsoid they get (`SmallSolids`), and are not specks. An open one
-/// with depth, two triangles folded along their shared edge, leaves an ellipsoid through its
-/// four corners free: Stanford's dragon at `res3` has six, fitted with needles 265 long in
-/// a model 0.2 across, two of which decoded turned over.
+/// flat (no thicker than [`SPECK_THICKNESS`] of its extent) or has every vertex on its
+/// border (a strip or fan with no inner vertex): the fins, loose triangles and folded pairs
+/// of triangles of a scan (a face on a non-manifold edge is cut off on import). A speck is a
+/// region of its own, fitted with a tangent sphere ([`fit_tangent_sphere`]), and its
+/// boundary is stored as the mesh has it. Small closed pieces with depth (the head scan from
+/// npm's `snowden` has boxes of seven triangles) bound a solid, whose ellipsoid they get
+/// (`SmallSolids`), and open ones with an inner vertex (an octahedron less a face) are
+/// fitted like any region: neither is a speck. A piece with depth and no inner vertex, two
+/// triangles folded along their shared edge, leaves an ellipsoid through its four corners
+/// free: Stanford's dragon at `res3` has six, fitted with needles 265 long in a model 0.2
+/// across, two of which decoded turned over.
 pub fn speck_faces(mesh: &Mesh) -> Vec<bool> {
     let topology = mesh.topology();
     let labels = topology.face_components();
@@ -133,10 +135,27 @@ pub fn speck_faces(mesh: &Mesh) -> Vec<bool> {
             .collect();
         is_flat(&points)
     };
+    // Vertices on a border edge: a piece all of whose vertices are is a strip or fan of
+    // triangles with no inner vertex, decoded as its own boundary loop.
+    let mut on_border = vec![false; positions.len()];
+    for (f, face) in mesh.faces().iter().enumerate() {
+        for k in 0..3 {
+            if topology.is_border_edge(f, k) {
+                for v in [face[k], face[(k + 1) % 3]] {
+                    if let Some(b) = on_border.get_mut(v as usize) {
+                        *b = true;
+                    }
+                }
+            }
+        }
+    }
+    let bordered = |list: &Vec<u32>| {
+        list.iter()
+            .all(|&v| on_border.get(v as usize).copied().unwrap_or(false))
+    };
     let specks: Vec<bool> = vertices
         .iter()
-        .zip(&open_pieces(mesh))
-        .map(|(l, &open)| l.len() < MIN_ELLIPSOID_SAMPLES && (open || flat(l)))
+        .map(|l| l.len() < MIN_ELLIPSOID_SAMPLES && (flat(l) || bordered(l)))
         .collect();
     labels
         .iter()
