@@ -1719,3 +1719,85 @@ fn regions_no_attempt_can_mesh_are_left_out_as_holes() {
     assert!(String::from_utf8_lossy(&refused.stderr).contains("region"));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// An open tube with a fin along one of its meridians, from rim to rim: one triangle on each
+/// meridian edge, which makes the edge non-manifold (a border to each of its three faces).
+/// The tube stays one piece, cut open along the meridian, and its one region's boundary
+/// runs round one rim, up the meridian, round the other rim and down the meridian again.
+/// Decoded, the meridian's two ways cancel (a seam, `assemble::without_seams`): the tube is
+/// meshed across it with its two rims as loops. Before, the two ways were the same segment
+/// constrained twice, the region's loops crossed in every chart and the tube was left out
+/// of the mesh (a hole where the source has a surface).
+#[test]
+fn a_region_on_both_sides_of_a_non_manifold_edge_is_meshed_across_it() {
+    let (around, along) = (24u32, 6u32);
+    let tube = ellip::synth::shapes::cylinder(1.0, 3.0, around, along);
+    let mut positions = tube.positions().to_vec();
+    let mut faces = tube.faces().to_vec();
+    for j in 0..along {
+        // Vertex 0 of each ring lies on the meridian at x = 1, y = 0.
+        let (a, b) = (j * around, (j + 1) * around);
+        let apex =
+            0.5 * (positions[a as usize] + positions[b as usize]) + DVec3::new(0.4, 0.0, 0.0);
+        positions.push(apex);
+        faces.push([a, b, positions.len() as u32 - 1]);
+    }
+    let mesh = Mesh::new(positions, faces).unwrap();
+    let t = mesh.topology();
+    assert_eq!(t.nonmanifold_edge_count(), along as usize);
+    // The tube (cut along the meridian) and the fins, each a piece of its own.
+    let pieces = t.component_count();
+    assert_eq!(pieces, 1 + along as usize);
+    let settings = EncodeSettings {
+        segment: SegmentOptions {
+            regions: RegionCount::Fixed(pieces),
+            ..SegmentOptions::default()
+        },
+        verify: false,
+        ..EncodeSettings::default()
+    };
+    let encoded = encode_mesh(&mesh, &settings, &mut |_| {}).unwrap();
+    let rep = decode(&encoded.bytes, &Limits::default()).unwrap();
+    // The tube's region: the one with the most faces; its cycle runs the meridian both ways.
+    let tube_region = encoded
+        .segmentation
+        .faces_by_region()
+        .iter()
+        .enumerate()
+        .max_by_key(|(_, f)| f.len())
+        .map(|(r, _)| r)
+        .unwrap();
+    let mut directed = Vec::new();
+    for cycle in &rep.cycles[tube_region] {
+        for a in &cycle.arcs {
+            let arc = &rep.arcs[a.arc as usize];
+            let mut points = arc.points.clone();
+            if a.reversed {
+                points.reverse();
+            }
+            directed.extend(points.windows(2).map(|w| (w[0], w[1])));
+        }
+    }
+    assert!(
+        directed.iter().any(|&(u, v)| directed.contains(&(v, u))),
+        "the tube's boundary runs no edge both ways"
+    );
+    let out = remesh(&rep, &RemeshOptions::default()).unwrap();
+    assert_eq!(out.check.omitted_regions, 0, "{:?}", out.check);
+    assert_eq!(
+        (out.check.flipped, out.check.degenerate),
+        (0, 0),
+        "{:?}",
+        out.check
+    );
+    // The tube is there: its faces cover its area (2π · 3 ≈ 18.85) to within 5 %.
+    let tube_area: f64 = (0..out.mesh.face_count())
+        .filter(|&f| out.face_regions[f] as usize == tube_region)
+        .map(|f| 0.5 * out.mesh.face_area_vector(f).length())
+        .sum();
+    let expected = std::f64::consts::TAU * 3.0;
+    assert!(
+        (tube_area / expected - 1.0).abs() < 0.05,
+        "tube area {tube_area}, expected {expected}"
+    );
+}

@@ -832,6 +832,10 @@ impl Plan<'_> {
                     loops.push(lp);
                 }
             }
+            let loops: Vec<Vec<u32>> = without_seams(loops)
+                .into_iter()
+                .filter(|l| l.len() >= 3)
+                .collect();
             if loops.is_empty() {
                 continue;
             }
@@ -1290,6 +1294,86 @@ fn without_spikes(ids: Vec<u32>) -> Vec<u32> {
         }
     }
     kept.into()
+}
+
+/// A region's loops (pool vertices, the region on their left, no spikes:
+/// [`without_spikes`]) without their seams: wherever one loop runs u → v and the same or
+/// another loop v → u, both edges are dropped and the loops re-joined around them.
+///
+/// Such a pair is an edge the region lies on both sides of, a border to each of its faces:
+/// a non-manifold edge that import cut (a CAD model's plates meeting a third face along
+/// an edge, assimp's `regr01`), or two border arcs a scan's region closes on itself along.
+/// Kept, it is a slit of zero width, the same segment constrained twice, which no chart can
+/// triangulate (the region's loops "cross" and it was left out). Dropped, the region is
+/// meshed across the edge, as the source's faces on its two sides were one surface; no other
+/// region shares the edge (both its arcs are border arcs of this region).
+///
+/// Re-joining is the half-edge rule: a kept edge is followed by the next edge of its loop,
+/// or, where that one was dropped, by whatever follows its partner (and so on). One pair
+/// within one loop splits it in two (u … u and v … v); a pair across two loops joins them.
+/// Loops without such a pair are returned as they are.
+fn without_seams(loops: Vec<Vec<u32>>) -> Vec<Vec<u32>> {
+    // Edge e runs from `from[e]` to the start of `next[e]`, the edge after it in its loop.
+    let mut from = Vec::new();
+    let mut next = Vec::new();
+    for lp in &loops {
+        let base = from.len();
+        from.extend_from_slice(lp);
+        next.extend((0..lp.len()).map(|k| base + (k + 1) % lp.len()));
+    }
+    // The edges u → v by (u, v), in order; the k-th of u → v is paired with the k-th of v → u.
+    let mut by_ends: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
+    for e in 0..from.len() {
+        by_ends.entry((from[e], from[next[e]])).or_default().push(e);
+    }
+    let mut partner = vec![usize::MAX; from.len()];
+    let mut paired = false;
+    for (&(u, v), forward) in &by_ends {
+        if u >= v {
+            continue;
+        }
+        for (&a, &b) in forward
+            .iter()
+            .zip(by_ends.get(&(v, u)).into_iter().flatten())
+        {
+            partner[a] = b;
+            partner[b] = a;
+            paired = true;
+        }
+    }
+    if !paired {
+        return loops;
+    }
+    // The kept edge after kept edge `e` (None if the dropped ones around it lead nowhere).
+    let follow = |e: usize| {
+        let mut f = next[e];
+        for _ in 0..from.len() {
+            match partner[f] {
+                usize::MAX => return Some(f),
+                p => f = next[p],
+            }
+        }
+        None
+    };
+    let mut seen = vec![false; from.len()];
+    let mut out = Vec::new();
+    for start in 0..from.len() {
+        if partner[start] != usize::MAX || seen[start] {
+            continue;
+        }
+        let mut lp = Vec::new();
+        let mut e = start;
+        while !seen[e] {
+            seen[e] = true;
+            lp.push(from[e]);
+            match follow(e) {
+                Some(f) => e = f,
+                None => break,
+            }
+        }
+        out.push(lp);
+    }
+    out
 }
 
 /// One piece to triangulate: a region, or half of a whole-ellipsoid region.
@@ -2370,6 +2454,31 @@ mod tests {
             omitted.faults(),
             "0 flipped and 0 degenerate triangles, 2 regions left out, not closed"
         );
+    }
+
+    #[test]
+    fn loops_lose_their_seams() {
+        // One loop running 1 → 2 and later 2 → 1: split into the loops on either side.
+        assert_eq!(
+            without_seams(vec![vec![0, 1, 2, 3, 4, 2, 1, 5]]),
+            vec![vec![0, 1, 5], vec![2, 3, 4]]
+        );
+        // Two loops, one running 0 → 1, the other 1 → 0: joined into one.
+        assert_eq!(
+            without_seams(vec![vec![0, 1, 2], vec![1, 0, 3]]),
+            vec![vec![1, 2, 0, 3]]
+        );
+        // A seam of two edges (1 → 2 → 3 and back) between two rims, as on a tube cut
+        // along a meridian: the rims are left.
+        assert_eq!(
+            without_seams(vec![vec![10, 11, 1, 2, 3, 20, 21, 3, 2, 1]]),
+            vec![vec![10, 11, 1], vec![3, 20, 21]]
+        );
+        // Every edge in a pair: nothing is left.
+        assert!(without_seams(vec![vec![0, 1, 2], vec![2, 1, 0]]).is_empty());
+        // No pair: unchanged, however the loops touch.
+        let touching = vec![vec![0, 1, 2], vec![0, 3, 4]];
+        assert_eq!(without_seams(touching.clone()), touching);
     }
 
     #[test]
