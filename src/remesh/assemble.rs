@@ -832,10 +832,23 @@ impl Plan<'_> {
                     loops.push(lp);
                 }
             }
+            // A region whose every boundary edge is a seam lies on both sides of all its
+            // boundary and closes on itself: it is left out, and said so, as it was when its
+            // loops crossed (meshing it as its whole ellipsoid is for a later change: such an
+            // ellipsoid was fitted to a patch, and may reach far beyond it).
+            let had_loops = !loops.is_empty();
             let loops: Vec<Vec<u32>> = without_seams(loops)
                 .into_iter()
                 .filter(|l| l.len() >= 3)
                 .collect();
+            if had_loops && loops.is_empty() {
+                let refused = Err(RemeshError::Region {
+                    region,
+                    what: "every boundary edge is a seam (the region closes on itself)",
+                });
+                noted::<()>(refused, faults.as_deref_mut())?;
+                continue;
+            }
             if loops.is_empty() {
                 continue;
             }
@@ -1313,11 +1326,11 @@ fn without_spikes(ids: Vec<u32>) -> Vec<u32> {
 /// within one loop splits it in two (u … u and v … v); a pair across two loops joins them.
 /// Loops without such a pair are returned as they are.
 fn without_seams(loops: Vec<Vec<u32>>) -> Vec<Vec<u32>> {
-    // Both ends of a pair come twice in the loops: most regions have no point twice, and
-    // are told so without hashing their edges.
+    // Both ends of a pair come twice in the loops, unless the pair is a loop of two points:
+    // most regions have neither, and are told so without hashing their edges.
     let mut points: Vec<u32> = loops.concat();
     points.sort_unstable();
-    if !points.windows(2).any(|w| w[0] == w[1]) {
+    if loops.iter().all(|l| l.len() > 2) && !points.windows(2).any(|w| w[0] == w[1]) {
         return loops;
     }
     // Edge e runs from `from[e]` to the start of `next[e]`, the edge after it in its loop.
@@ -2481,8 +2494,9 @@ mod tests {
             without_seams(vec![vec![10, 11, 1, 2, 3, 20, 21, 3, 2, 1]]),
             vec![vec![10, 11, 1], vec![3, 20, 21]]
         );
-        // Every edge in a pair: nothing is left.
+        // Every edge in a pair: nothing is left; also when the loop is two points.
         assert!(without_seams(vec![vec![0, 1, 2], vec![2, 1, 0]]).is_empty());
+        assert!(without_seams(vec![vec![4, 5]]).is_empty());
         // No pair: unchanged, however the loops touch.
         let touching = vec![vec![0, 1, 2], vec![0, 3, 4]];
         assert_eq!(without_seams(touching.clone()), touching);
