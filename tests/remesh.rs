@@ -1721,6 +1721,25 @@ fn regions_no_attempt_can_mesh_are_left_out_as_holes() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// The stored boundary edges of `region`, by point index, each the way its cycle runs it.
+fn directed_boundary(rep: &Representation, region: usize) -> Vec<(u32, u32)> {
+    let mut directed = Vec::new();
+    for cycle in &rep.cycles[region] {
+        for a in &cycle.arcs {
+            let arc = &rep.arcs[a.arc as usize];
+            let mut points = arc.points.clone();
+            if arc.closed {
+                points.push(points[0]);
+            }
+            if a.reversed {
+                points.reverse();
+            }
+            directed.extend(points.windows(2).map(|w| (w[0], w[1])));
+        }
+    }
+    directed
+}
+
 /// An open tube with a fin along one of its meridians, from rim to rim: one triangle on each
 /// meridian edge, which makes the edge non-manifold (a border to each of its three faces).
 /// The tube stays one piece, cut open along the meridian, and its one region's boundary
@@ -1749,36 +1768,13 @@ fn a_region_on_both_sides_of_a_non_manifold_edge_is_meshed_across_it() {
     // The tube (cut along the meridian) and the fins, each a piece of its own.
     let pieces = t.component_count();
     assert_eq!(pieces, 1 + along as usize);
-    let settings = EncodeSettings {
-        segment: SegmentOptions {
-            regions: RegionCount::Fixed(pieces),
-            ..SegmentOptions::default()
-        },
-        verify: false,
-        ..EncodeSettings::default()
-    };
-    let encoded = encode_mesh(&mesh, &settings, &mut |_| {}).unwrap();
-    let rep = decode(&encoded.bytes, &Limits::default()).unwrap();
-    // The tube's region: the one with the most faces; its cycle runs the meridian both ways.
-    let tube_region = encoded
-        .segmentation
-        .faces_by_region()
-        .iter()
-        .enumerate()
-        .max_by_key(|(_, f)| f.len())
-        .map(|(r, _)| r)
+    let (_, rep) = encode_unchecked(&mesh, pieces);
+    // The tube's region: the one with the longest boundary (two rims; a fin has three
+    // edges); its cycle runs the meridian both ways.
+    let tube_region = (0..rep.region_count())
+        .max_by_key(|&r| directed_boundary(&rep, r).len())
         .unwrap();
-    let mut directed = Vec::new();
-    for cycle in &rep.cycles[tube_region] {
-        for a in &cycle.arcs {
-            let arc = &rep.arcs[a.arc as usize];
-            let mut points = arc.points.clone();
-            if a.reversed {
-                points.reverse();
-            }
-            directed.extend(points.windows(2).map(|w| (w[0], w[1])));
-        }
-    }
+    let directed = directed_boundary(&rep, tube_region);
     assert!(
         directed.iter().any(|&(u, v)| directed.contains(&(v, u))),
         "the tube's boundary runs no edge both ways"
@@ -1801,5 +1797,61 @@ fn a_region_on_both_sides_of_a_non_manifold_edge_is_meshed_across_it() {
     assert!(
         (tube_area / expected - 1.0).abs() < 0.02,
         "tube area {tube_area}, expected {expected}"
+    );
+}
+
+/// A torus with a fin on every edge of one meridian: cut along that circle it stays one
+/// piece, a tube whose two rims are the meridian run both ways, so every edge of its one
+/// region's boundary is a seam. Such a region closes on itself; it is left out of the mesh
+/// and counted so (`RemeshError::Region`, the way a region whose loops cross is), not
+/// skipped as if it enclosed nothing: with every seam dropped it had no loop left, and it
+/// was missing from the mesh without a word.
+#[test]
+fn a_region_whose_every_boundary_edge_is_a_seam_is_left_out_and_said_so() {
+    let (around, meridian) = (24u32, 12u32);
+    let (major, minor) = (2.0, 0.6);
+    let torus = ellip::synth::shapes::torus(major, minor, around, meridian);
+    let mut positions = torus.positions().to_vec();
+    let mut faces = torus.faces().to_vec();
+    // Vertices 0..meridian are the meridian at angle 0 round the axis, centred on
+    // (major, 0, 0).
+    for j in 0..meridian {
+        let (a, b) = (j, (j + 1) % meridian);
+        let middle = 0.5 * (positions[a as usize] + positions[b as usize]);
+        let out = (middle - DVec3::new(major, 0.0, 0.0)).normalize();
+        positions.push(middle + 0.3 * out);
+        faces.push([a, b, positions.len() as u32 - 1]);
+    }
+    let mesh = Mesh::new(positions, faces).unwrap();
+    let t = mesh.topology();
+    assert_eq!(t.nonmanifold_edge_count(), meridian as usize);
+    let pieces = t.component_count();
+    assert_eq!(pieces, 1 + meridian as usize, "the cut torus and the fins");
+    let (_, rep) = encode_unchecked(&mesh, pieces);
+    // The torus's region: the one with the longest boundary (the meridian twice; a fin has
+    // three edges).
+    let torus_region = (0..rep.region_count())
+        .max_by_key(|&r| directed_boundary(&rep, r).len())
+        .unwrap();
+    assert_eq!(rep.region_count(), pieces, "the torus is one region");
+    // Every directed edge of its boundary has its reverse there too.
+    let directed = directed_boundary(&rep, torus_region);
+    assert!(!directed.is_empty());
+    assert!(
+        directed.iter().all(|&(u, v)| directed.contains(&(v, u))),
+        "{directed:?}"
+    );
+    let out = remesh(&rep, &RemeshOptions::default()).unwrap();
+    let torus_faces = out
+        .face_regions
+        .iter()
+        .filter(|&&r| r as usize == torus_region)
+        .count();
+    assert_eq!(torus_faces, 0);
+    assert_eq!(out.check.omitted_regions, 1, "{:?}", out.check);
+    assert!(
+        out.omitted.contains(&(torus_region as u32)),
+        "{:?}",
+        out.omitted
     );
 }
