@@ -1568,6 +1568,28 @@ fn a_region_whose_outer_loop_collapsed_keeps_its_other_loops() {
     let chart = ellip::remesh::query::chart_region(&rep, band).unwrap();
     assert!(chart.contains(DVec3::X) && chart.contains(DVec3::new(0.0, 0.6, -0.8)));
     assert!(!chart.contains(DVec3::Z));
+    // The cap has no face, and is not a region left out: `ellip decode` says so.
+    assert_eq!(out.faceless_regions(rep.region_count()), [south]);
+    assert!(out.omitted.is_empty());
+    let dir = scratch("collapsed-loop");
+    let input = dir.join("collapsed.ellip");
+    let bytes = ellip::format::encode(&rep, &Default::default()).unwrap();
+    std::fs::write(&input, bytes).unwrap();
+    let output = dir.join("collapsed.ply");
+    let decoded = ellip(&[
+        "decode",
+        input.to_str().unwrap(),
+        "-o",
+        output.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(decoded.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&decoded.stdout).unwrap();
+    assert_eq!(v["empty_regions"], serde_json::json!([south]));
+    assert_eq!(v["omitted_regions"], serde_json::json!([]));
+    let note = String::from_utf8_lossy(&decoded.stderr);
+    assert!(note.contains("region(s) 2 have no face"), "{note}");
+    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// Two separate pieces of a surface whose borders lie at the same positions (crossed cards

@@ -143,6 +143,9 @@ pub struct DecodeReport {
     /// The regions left out because they could not be meshed (holes in the mesh), in
     /// increasing order.
     omitted_regions: Vec<u32>,
+    /// The regions with no face that were not left out: every boundary loop of theirs
+    /// encloses nothing ([`Remeshed::faceless_regions`]), in increasing order.
+    empty_regions: Vec<u32>,
     colored: bool,
     /// How many times the regions were meshed ([`Remeshed::attempts`]).
     meshing_attempts: usize,
@@ -255,6 +258,14 @@ pub fn remesh_and_write(
             listed.join(", ")
         );
     }
+    let empty = remeshed.faceless_regions(rep.region_count());
+    if !quiet && !empty.is_empty() {
+        let listed: Vec<String> = empty.iter().map(u32::to_string).collect();
+        eprintln!(
+            "note: region(s) {} have no face: every boundary loop of theirs encloses nothing once its points are quantised (right for a region a few grid steps across; a larger one is lost from this file)",
+            listed.join(", ")
+        );
+    }
     Ok(DecodeReport {
         file: shown(input),
         output: shown(output),
@@ -272,6 +283,7 @@ pub fn remesh_and_write(
         degenerate_triangles: check.degenerate,
         flipped_triangles: check.flipped,
         omitted_regions: remeshed.omitted.clone(),
+        empty_regions: empty,
         colored,
         meshing_attempts: remeshed.attempts,
         treatment: remeshed.treatment.map(|t| t.code()),

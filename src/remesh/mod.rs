@@ -186,6 +186,28 @@ pub struct Remeshed {
     pub treatment: Option<assemble::Treatment>,
 }
 
+impl Remeshed {
+    /// The regions of a representation of `region_count` regions that have no face in the
+    /// mesh and were not left out ([`Remeshed::omitted`]), in increasing order: regions
+    /// whose every boundary loop encloses nothing (quantisation merged its points, spec
+    /// §12). Right for a region a few grid steps across, which the regions around it close
+    /// over; a larger one is lost (the encoder checks its own files for that,
+    /// [`crate::encode::MAX_LOST`]).
+    pub fn faceless_regions(&self, region_count: usize) -> Vec<u32> {
+        let mut has_faces = vec![false; region_count];
+        for &r in &self.face_regions {
+            if let Some(h) = has_faces.get_mut(r as usize) {
+                *h = true;
+            }
+        }
+        (0u32..)
+            .zip(has_faces)
+            .filter(|&(r, has)| !has && !self.omitted.contains(&r))
+            .map(|(r, _)| r)
+            .collect()
+    }
+}
+
 /// Why a representation could not be remeshed.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
