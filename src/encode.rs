@@ -954,51 +954,56 @@ impl Source<'_> {
                 note(region, d);
             }
         }
-        // The regions that may be lost: no decoded face, and at least MIN_LOST_AREA of the
-        // source's area.
-        let mut areas = vec![0.0f64; ellipsoids.len()];
-        for (f, &region) in labels.iter().enumerate() {
-            if let Some(a) = areas.get_mut(region as usize) {
-                *a += self.mesh.face_area(f);
-            }
-        }
-        let least = MIN_LOST_AREA * areas.iter().sum::<f64>();
-        let mut lost: Vec<bool> = areas.iter().map(|&a| a >= least).collect();
+        // Per lost region (no decoded face, at least MIN_LOST_AREA of the source's area),
+        // its farthest face from the decoded mesh past MAX_LOST (0: none). Most meshes
+        // leave no region without a face, and skip the rest.
+        let mut lost = vec![true; ellipsoids.len()];
         for &region in face_regions {
             if let Some(l) = lost.get_mut(region as usize) {
                 *l = false;
             }
         }
-        let lost_limit = MAX_LOST * self.diagonal;
-        let missing: Vec<Option<f64>> = self
-            .centroids
-            .par_iter()
-            .zip(labels)
-            .map(|(&c, &region)| {
-                if !lost.get(region as usize).copied().unwrap_or(false)
-                    || decoded_faces.is_within(c, lost_limit)
-                {
-                    return None;
-                }
-                Some(
-                    decoded_faces
-                        .find_closest(c)
-                        .map_or(f64::INFINITY, |hit| hit.distance_squared.sqrt()),
-                )
-            })
-            .collect();
-        // Per lost region, its farthest face from the decoded mesh (0: none past the bar).
         let mut gone = vec![0.0f64; ellipsoids.len()];
-        for (&region, distance) in labels.iter().zip(missing) {
-            if let (Some(d), Some(g)) = (distance, gone.get_mut(region as usize)) {
-                *g = g.max(d);
+        if lost.contains(&true) {
+            let mut areas = vec![0.0f64; ellipsoids.len()];
+            for (f, &region) in labels.iter().enumerate() {
+                if let Some(a) = areas.get_mut(region as usize) {
+                    *a += self.mesh.face_area(f);
+                }
+            }
+            let least = MIN_LOST_AREA * areas.iter().sum::<f64>();
+            for (l, &a) in lost.iter_mut().zip(&areas) {
+                *l &= a >= least;
+            }
+            let lost_limit = MAX_LOST * self.diagonal;
+            let missing: Vec<Option<f64>> = self
+                .centroids
+                .par_iter()
+                .zip(labels)
+                .map(|(&c, &region)| {
+                    if !lost.get(region as usize).copied().unwrap_or(false)
+                        || decoded_faces.is_within(c, lost_limit)
+                    {
+                        return None;
+                    }
+                    Some(
+                        decoded_faces
+                            .find_closest(c)
+                            .map_or(f64::INFINITY, |hit| hit.distance_squared.sqrt()),
+                    )
+                })
+                .collect();
+            for (&region, distance) in labels.iter().zip(missing) {
+                if let (Some(d), Some(g)) = (distance, gone.get_mut(region as usize)) {
+                    *g = g.max(d);
+                }
             }
         }
         let mut far: Vec<(u32, f64)> = (0u32..)
             .zip(farthest.into_iter().zip(gone))
             .filter_map(|(r, (d, g))| {
-                let d = if d > limit { d } else { 0.0 };
-                (d.max(g) > 0.0).then_some((r, d.max(g)))
+                let worst = if d > limit { d.max(g) } else { g };
+                (worst > 0.0).then_some((r, worst))
             })
             .collect();
         far.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
