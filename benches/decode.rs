@@ -8,7 +8,7 @@
 //! thread (the remesher does not use more); and, as a baseline timed the same way in the same
 //! run, spade's bulk-loaded Delaunay triangulation of as many points in a square (the floor
 //! any remesher built on spade's triangulation pays) and the decode's time over it.
-//! Budgets of 40 000 vertices and more are met by subdivision (`remesh::subdivide`).
+//! Budgets of 20 000 vertices and more are met by subdivision (`remesh::subdivide`).
 //! Target (issue 6): at least 1M output triangles per second.
 //!
 //! With `-- --scaling`: each file decoded by vertex addition alone at [`SCALING_VERTICES`]

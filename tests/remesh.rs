@@ -9,7 +9,10 @@ use ellip::encode::{encode_mesh, EncodeSettings};
 use ellip::format::{decode, Limits};
 use ellip::import::{read_mesh, ImportOptions};
 use ellip::remesh::subdivide::subdivide;
-use ellip::remesh::{remesh, RemeshOptions, Remeshed, Scheme, SUBDIVISION_COARSE_VERTICES};
+use ellip::remesh::{
+    remesh, RemeshOptions, Remeshed, Scheme, SUBDIVISION_COARSE_VERTICES,
+    SUBDIVISION_VERTICES_PER_REGION,
+};
 use ellip::representation::Representation;
 use ellip::rng::SplitMix64;
 use ellip::segment::{RegionCount, SegmentOptions};
@@ -789,6 +792,7 @@ fn vertices_mending_removes_are_made_up_for() {
 fn subdivision_levels_follow_the_budget() {
     let o = RemeshOptions::default();
     let c = SUBDIVISION_COARSE_VERTICES;
+    // A few regions: the coarse mesh's floor is SUBDIVISION_COARSE_VERTICES.
     for (budget, levels) in [
         (4 * c - 1, 0),
         (4 * c, 1),
@@ -797,7 +801,20 @@ fn subdivision_levels_follow_the_budget() {
         (64 * c, 3),
         (ellip::remesh::MAX_VERTICES, 3),
     ] {
-        assert_eq!(o.subdivision_levels(budget), levels, "{budget}");
+        assert_eq!(o.subdivision_levels(budget, 8), levels, "{budget}");
+    }
+    // Many regions: SUBDIVISION_VERTICES_PER_REGION each.
+    let regions = 1_000;
+    let floor = regions * SUBDIVISION_VERTICES_PER_REGION;
+    assert!(floor > c, "the premise: the regions set the floor");
+    for (budget, levels) in [
+        (4 * floor - 1, 0),
+        (4 * floor, 1),
+        (16 * floor - 1, 1),
+        (16 * floor, 2),
+        (64 * floor, 3),
+    ] {
+        assert_eq!(o.subdivision_levels(budget, regions), levels, "{budget}");
     }
     // Only the adaptive scheme, without a tolerance, and only when allowed.
     for other in [
@@ -814,7 +831,7 @@ fn subdivision_levels_follow_the_budget() {
             ..o.clone()
         },
     ] {
-        assert_eq!(other.subdivision_levels(64 * c), 0, "{other:?}");
+        assert_eq!(other.subdivision_levels(64 * c, 8), 0, "{other:?}");
     }
 }
 
@@ -829,6 +846,8 @@ fn subdivision_meets_large_budgets_like_vertex_addition() {
     for name in ["blob1.obj", "blob4.obj"] {
         let mesh = source(name);
         let (_, rep) = encode(&mesh, blob_ellipsoids(name));
+        let levels = RemeshOptions::default().subdivision_levels(budget, rep.region_count());
+        assert_eq!(levels, 1, "{name}");
         let fast = remesh(&rep, &options(budget, Scheme::Adaptive)).unwrap();
         let slow = remesh(&rep, &by_vertex_addition(budget)).unwrap();
         assert_clean(&fast, name);
@@ -859,8 +878,8 @@ fn subdivision_meets_large_budgets_like_vertex_addition() {
 }
 
 /// A real file (the bunny at K = 8, volume mode, as in the paper) at 500 000 vertices: its
-/// adaptive mesh at a sixteenth of the budget is clean, subdivided twice it stays clean and
-/// closed with about sixteen times the triangles, and that is what the decoder returns.
+/// adaptive mesh at a sixty-fourth of the budget is clean, subdivided three times it stays
+/// clean and closed with about 64 times the triangles, and that is what the decoder returns.
 /// (Before boundary heights were blended in, some of its coarse faces stood nearly edge-on
 /// to their ellipsoids and stayed whole under red–green refinement; red–green itself is
 /// tested in `remesh::subdivide`.)
@@ -880,22 +899,25 @@ fn subdivision_keeps_a_clean_coarse_mesh_clean() {
     let bytes = encode_mesh(&mesh, &settings, &mut |_| {}).unwrap().bytes;
     let rep = decode(&bytes, &Limits::default()).unwrap();
     let budget = 500_000;
-    assert_eq!(RemeshOptions::default().subdivision_levels(budget), 2);
-    let coarse = remesh(&rep, &by_vertex_addition(budget / 16)).unwrap();
+    assert_eq!(
+        RemeshOptions::default().subdivision_levels(budget, rep.region_count()),
+        3
+    );
+    let coarse = remesh(&rep, &by_vertex_addition(budget.div_ceil(64))).unwrap();
     assert_clean(&coarse, "coarse");
     let (v, f) = (coarse.mesh.vertex_count(), coarse.mesh.face_count());
-    let fine = subdivide(&rep, coarse, 2, usize::MAX).unwrap();
+    let fine = subdivide(&rep, coarse, 3, usize::MAX).unwrap();
     assert_clean(&fine, "subdivided");
     assert_closed(&fine, "subdivided");
-    // Sixteen triangles per coarse one, fewer where faces stay whole (some, not many).
+    // 64 triangles per coarse one, fewer where faces stay whole (some, not many).
     assert!(
-        fine.mesh.face_count() > 15 * f && fine.mesh.face_count() <= 16 * f,
+        fine.mesh.face_count() > 63 * f && fine.mesh.face_count() <= 64 * f,
         "{} of {}",
         fine.mesh.face_count(),
-        16 * f
+        64 * f
     );
     assert!(
-        fine.mesh.vertex_count() > 15 * v,
+        fine.mesh.vertex_count() > 63 * v,
         "{}",
         fine.mesh.vertex_count()
     );
@@ -918,7 +940,10 @@ fn a_coarse_mesh_that_is_not_clean_is_subdivided_not_searched_at_the_full_budget
     };
     let (_, rep) = encode_unchecked(&mesh, 12);
     let budget = 250_000;
-    assert_eq!(RemeshOptions::default().subdivision_levels(budget), 2);
+    assert_eq!(
+        RemeshOptions::default().subdivision_levels(budget, rep.region_count()),
+        2
+    );
     assert!(budget / 4 > ellip::remesh::assemble::FALLBACK_MAX_VERTICES);
     let coarse = remesh(&rep, &by_vertex_addition(budget / 16)).unwrap();
     // The premise: were the coarse mesh clean, this would test the clean path.

@@ -55,9 +55,10 @@ pub struct RemeshArgs {
     /// (adaptive), or a regular grid on the unit sphere (parametric).
     #[arg(long, value_enum, default_value_t = SchemeArg::Adaptive)]
     scheme: SchemeArg,
-    /// Place every vertex by adaptive vertex addition. By default a budget of 40000 vertices
-    /// or more is met by meshing adaptively at a quarter (or a sixteenth, a sixty-fourth) of
-    /// it and splitting every triangle into four, several times faster for the same error.
+    /// Place every vertex by adaptive vertex addition. By default a budget of 20000 vertices
+    /// or more (and 256 per region) is met by meshing adaptively at a quarter (or a
+    /// sixteenth, a sixty-fourth) of it and splitting every triangle into four, several times
+    /// faster for the same error.
     #[arg(long)]
     no_subdivision: bool,
     /// Fail when a region cannot be meshed, instead of leaving it out (a hole) with a

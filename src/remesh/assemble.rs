@@ -259,7 +259,7 @@ fn assemble_counted(
     let budget = options.budget(rep);
     // The best subdivided mesh that is not clean, if any.
     let mut best: Option<Remeshed> = None;
-    for levels in (1..=options.subdivision_levels(budget)).rev() {
+    for levels in (1..=options.subdivision_levels(budget, rep.region_count())).rev() {
         let coarse_budget = budget.div_ceil(4usize.pow(levels));
         if coarse_budget > FALLBACK_MAX_VERTICES {
             if let Some(kept) = best.take() {

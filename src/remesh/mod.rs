@@ -65,11 +65,12 @@ pub struct RemeshOptions {
     pub scheme: Scheme,
     /// Upper bound on the budget (default [`MAX_VERTICES`]).
     pub max_vertices: usize,
-    /// Whether a large budget (at least 4 × [`SUBDIVISION_COARSE_VERTICES`], adaptive
-    /// scheme, no tolerance) may be met by meshing adaptively at a quarter, a sixteenth or a
-    /// sixty-fourth of it and splitting every triangle into four ([`subdivide`]); default
-    /// true. Off, every vertex is placed by iterative vertex addition (several times slower
-    /// at hundreds of thousands of vertices).
+    /// Whether a budget large enough ([`RemeshOptions::subdivision_levels`]: at least four
+    /// times [`SUBDIVISION_COARSE_VERTICES`] and [`SUBDIVISION_VERTICES_PER_REGION`] per
+    /// region; adaptive scheme, no tolerance) may be met by meshing adaptively at a quarter,
+    /// a sixteenth or a sixty-fourth of it and splitting every triangle into four
+    /// ([`subdivide`]); default true. Off, every vertex is placed by iterative vertex
+    /// addition (two to four times slower from 20 000 vertices up).
     pub subdivision: bool,
     /// When some region fails in every meshing attempt: whether the attempts are made again
     /// leaving out each region that fails (a hole, counted in
@@ -79,7 +80,28 @@ pub struct RemeshOptions {
 }
 
 /// Fewest vertices the adaptive mesh that [`subdivide`] refines is made with.
-pub const SUBDIVISION_COARSE_VERTICES: usize = 10_000;
+///
+/// Measured against the source (`ellip decode --vertices N`, then `ellip compare SOURCE
+/// OUT`: symmetric RMS as % of the diagonal, normal deviation) on the decode bench's files
+/// (hand and horse at 18 regions, teddy and bunny at 8, hand at K = 64), at 20 000, 30 000,
+/// 80 000 and 320 000 vertices: with 5 000 instead of 10 000, RMS within 1.5 % of what it
+/// was (hand at 20 000: 0.252 % instead of 0.260 %; horse at 30 000: 1.679 % instead of
+/// 1.658 %), 4 % for hand at K = 64, and normals within 0.3°. The budgets from 20 000 to
+/// 40 000 vertices, which were met by vertex addition alone, take a quarter to a half of
+/// the time (README, "Large budgets are met by subdivision"). From a coarser mesh it costs
+/// more: at 5 000 vertices, one level from 1 250 is about what vertex addition gives at half
+/// the budget; hand at 80 000 vertices, three levels from 1 250, was 9 % worse in RMS than
+/// vertex addition alone.
+pub const SUBDIVISION_COARSE_VERTICES: usize = 5_000;
+
+/// Fewest vertices per region the adaptive mesh that [`subdivide`] refines is made with: a
+/// coarser mesh is mostly boundary, and subdividing it spreads evenly the vertices vertex
+/// addition would put where the error is. Measured against the source at 5 000 to 20 000
+/// vertices (vertex addition at a quarter of the budget subdivided once, against vertex
+/// addition alone) on hand at K = 64 and the npm bunny at K = 100: from 20 and 12 coarse
+/// vertices per region, 32 % and 17 % worse in RMS; from 39 and 25, 7 % and 6 %; from 78
+/// and 50, 4 % worse and 5 % better.
+pub const SUBDIVISION_VERTICES_PER_REGION: usize = 64;
 
 /// Most levels of subdivision (each multiplies the vertex count by about four).
 pub const MAX_SUBDIVISION_LEVELS: u32 = 3;
@@ -126,18 +148,20 @@ impl RemeshOptions {
         Ok(())
     }
 
-    /// How many times [`remesh`] subdivides an adaptive mesh to meet `budget` vertices: the
-    /// most levels (up to [`MAX_SUBDIVISION_LEVELS`]) that leave the adaptive mesh at least
-    /// [`SUBDIVISION_COARSE_VERTICES`]; 0 unless [`RemeshOptions::subdivision`] is on, the
-    /// scheme adaptive and no tolerance set (a tolerance is met by vertex addition alone).
-    pub fn subdivision_levels(&self, budget: usize) -> u32 {
+    /// How many times [`remesh`] subdivides an adaptive mesh to meet `budget` vertices for a
+    /// representation of `regions` regions: the most levels (up to
+    /// [`MAX_SUBDIVISION_LEVELS`]) that leave the adaptive mesh at least
+    /// [`SUBDIVISION_COARSE_VERTICES`] and [`SUBDIVISION_VERTICES_PER_REGION`] per region;
+    /// 0 unless [`RemeshOptions::subdivision`] is on, the scheme adaptive and no tolerance
+    /// set (a tolerance is met by vertex addition alone).
+    pub fn subdivision_levels(&self, budget: usize, regions: usize) -> u32 {
         if !self.subdivision || self.scheme != Scheme::Adaptive || self.tolerance.is_some() {
             return 0;
         }
+        let fewest = SUBDIVISION_COARSE_VERTICES
+            .max(regions.saturating_mul(SUBDIVISION_VERTICES_PER_REGION));
         let mut levels = 0;
-        while levels < MAX_SUBDIVISION_LEVELS
-            && budget / 4usize.pow(levels + 1) >= SUBDIVISION_COARSE_VERTICES
-        {
+        while levels < MAX_SUBDIVISION_LEVELS && budget / 4usize.pow(levels + 1) >= fewest {
             levels += 1;
         }
         levels
