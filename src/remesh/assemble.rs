@@ -23,7 +23,7 @@
 //! The tolerance's bounding box is that of the boundary points and of the whole-ellipsoid
 //! regions (the part of the output the file pins down before any interior is meshed).
 
-use super::chart::{is_degenerate_loop, PoleWalk, Projection, RegionChart};
+use super::chart::{is_degenerate_loop, ChartMemo, PoleWalk, Projection, RegionChart};
 use super::refine::{refine_arcs, Prune, RefineSettings};
 use super::subdivide::subdivide;
 use super::surface::{Lift, RegionSurface};
@@ -138,6 +138,8 @@ struct Prepared {
     tolerance: Option<f64>,
     areas: Vec<f64>,
     settings: RefineSettings,
+    /// The charts every attempt makes, made once ([`ChartMemo`]).
+    charts: ChartMemo,
 }
 
 impl Prepared {
@@ -153,6 +155,7 @@ impl Prepared {
             settings: self.settings,
             treatment: Treatment::FIRST,
             leave_out: false,
+            charts: &self.charts,
         }
     }
 }
@@ -202,6 +205,7 @@ fn prepare(rep: &Representation, options: &RemeshOptions) -> Result<Prepared, Re
         tolerance,
         areas,
         settings,
+        charts: ChartMemo::default(),
     })
 }
 
@@ -649,6 +653,8 @@ struct Plan<'a> {
     /// at `res3` mesh whole, but changed the encoder's check enough that horse's file at
     /// K = 20 (volume) came out with a region 10 % of the diagonal off its source.
     leave_out: bool,
+    /// The charts made so far, in this attempt and the ones before.
+    charts: &'a ChartMemo,
 }
 
 impl Plan<'_> {
@@ -770,10 +776,13 @@ impl Plan<'_> {
                 rep,
                 &mut refined.arcs,
                 &refined.points,
-                treatment.projection,
                 treatment.radial_where_untangled,
-                treatment.pole_walk,
-                self.leave_out,
+                Charting {
+                    projection: treatment.projection,
+                    walk: treatment.pole_walk,
+                    skip_degenerate: self.leave_out,
+                    charts: self.charts,
+                },
             );
         }
         if treatment.radial_where_untangled
@@ -865,7 +874,7 @@ impl Plan<'_> {
                 .map(|(_, chart)| Ok(chart));
             let projection = projections.get(r).copied().unwrap_or(treatment.projection);
             let chart = known.unwrap_or_else(|| {
-                RegionChart::with_projection(
+                self.charts.chart(
                     region,
                     &stand_in,
                     &loop_points,
@@ -947,20 +956,19 @@ const UNTANGLE_MAX_POINTS: usize = 200_000;
 /// surface is not star-shaped from there (common on real meshes, which the ellipsoid only
 /// approximates), the projected boundary can fold over itself. Each crossing drops an
 /// endpoint of one of the crossing segments from the arc it belongs to, for both regions
-/// the arc separates; a few rounds settle it. Deterministic.
+/// the arc separates; a few rounds settle it. Deterministic. `charting` gives the
+/// projection the regions are charted with first (and the rest).
 fn untangle(
     rep: &Representation,
     chains: &mut [Vec<u32>],
     points: &[DVec3],
-    projection: Projection,
     radial_where_crossing: bool,
-    walk: PoleWalk,
-    skip_degenerate: bool,
+    first: Charting,
 ) -> (Vec<KnownChart>, Vec<Projection>) {
+    let projection = first.projection;
     let charting = |projection| Charting {
         projection,
-        walk,
-        skip_degenerate,
+        ..first
     };
     // Regions whose loops changed since they were last looked at: the others would find
     // the same crossings, whose drops were refused.
@@ -1041,12 +1049,14 @@ type Droppable = Option<(u32, usize)>;
 
 /// How [`region_crossings`] charts a region's loops.
 #[derive(Debug, Clone, Copy)]
-struct Charting {
+struct Charting<'a> {
     projection: Projection,
     walk: PoleWalk,
     /// Loops that enclose nothing are left out (the decoder's last resort:
     /// [`Plan::leave_out`]).
     skip_degenerate: bool,
+    /// Where the charts are made ([`Plan::charts`]).
+    charts: &'a ChartMemo,
 }
 
 /// Finds the crossings of one region's loops in its chart and, for each, a point to drop
@@ -1064,6 +1074,7 @@ fn region_crossings(
         projection,
         walk,
         skip_degenerate,
+        charts,
     } = charting;
     let (Some(e), Some(cycles)) = (
         rep.ellipsoids.get(region as usize),
@@ -1115,7 +1126,7 @@ fn region_crossings(
         .map(|l| l.iter().map(|v| v.0).collect())
         .collect();
     let surface = chart_surface(e, &loop_points);
-    let Ok(chart) = RegionChart::with_projection(
+    let Ok(chart) = charts.chart(
         region,
         &surface,
         &loop_points,
@@ -2584,6 +2595,7 @@ mod tests {
                     projection: Projection::Closest,
                     walk: PoleWalk::Free,
                     skip_degenerate,
+                    charts: &ChartMemo::default(),
                 },
                 &mut drop,
             );
