@@ -104,12 +104,20 @@ pub enum PoleWalk {
 /// file that needs several meshing attempts (boundary treatments) charts most of its regions
 /// alike in each, untangling and then meshing them. Snowden's head scan (npm), whose file
 /// decodes in 14 meshings, made 1 479 charts of which 614 had distinct inputs; `regr01`
-/// (assimp) 2 483, of which 372. A hit is the chart made before, bit for bit.
+/// (assimp) 2 483, of which 372. A hit is the chart made before, bit for bit. Charts of more
+/// than [`MEMO_MAX_POINTS`] loop points in all are made but not kept.
 #[derive(Debug, Default)]
 pub struct ChartMemo {
     /// Each chart (or why there is none) by [`chart_key`].
     charts: RefCell<HashMap<Vec<u64>, Result<RegionChart, &'static str>>>,
+    /// The loop points of the charts kept.
+    points: std::cell::Cell<usize>,
 }
+
+/// Most loop points the charts a [`ChartMemo`] keeps may have in all: about 100 bytes each
+/// (the key, the plane loops and their index), so at most a few hundred megabytes for a
+/// file whose every attempt charts a million boundary points.
+pub const MEMO_MAX_POINTS: usize = 4_000_000;
 
 impl ChartMemo {
     /// [`RegionChart::with_projection`], made once for each distinct input.
@@ -128,6 +136,11 @@ impl ChartMemo {
                 .map_err(|what| RemeshError::Region { region, what });
         }
         let made = RegionChart::with_projection(region, ellipsoid, loops, projection, walk);
+        let points = self.points.get() + loops.iter().map(Vec::len).sum::<usize>();
+        if points > MEMO_MAX_POINTS {
+            return made;
+        }
+        self.points.set(points);
         let kept = match &made {
             Ok(chart) => Ok(chart.clone()),
             Err(RemeshError::Region { what, .. }) => Err(*what),
