@@ -769,10 +769,9 @@ impl Plan<'_> {
         if settings.prune == Prune::All && refined.wide_ears == 0 {
             return Ok(None);
         }
-        let mut charts = Vec::new();
         let mut projections = vec![treatment.projection; rep.region_count()];
         if treatment.untangle {
-            (charts, projections) = untangle(
+            projections = untangle(
                 rep,
                 &mut refined.arcs,
                 &refined.points,
@@ -866,22 +865,15 @@ impl Plan<'_> {
                 .map(|l| l.iter().map(|&v| pool.position(v)).collect())
                 .collect();
             let stand_in = chart_surface(ellipsoid, &loop_points);
-            // The chart untangling last made of the same loops, if any: the same chart.
-            let known = charts
-                .get_mut(r)
-                .and_then(Option::take)
-                .filter(|(l, _)| *l == loop_points)
-                .map(|(_, chart)| Ok(chart));
             let projection = projections.get(r).copied().unwrap_or(treatment.projection);
-            let chart = known.unwrap_or_else(|| {
-                self.charts.chart(
-                    region,
-                    &stand_in,
-                    &loop_points,
-                    projection_onto(&stand_in, ellipsoid, projection),
-                    treatment.pole_walk,
-                )
-            });
+            // Where untangling left the loops as they are, the chart it made ([`ChartMemo`]).
+            let chart = self.charts.chart(
+                region,
+                &stand_in,
+                &loop_points,
+                projection_onto(&stand_in, ellipsoid, projection),
+                treatment.pole_walk,
+            );
             let Some(chart) = noted(chart, faults.as_deref_mut())? else {
                 continue;
             };
@@ -956,15 +948,16 @@ const UNTANGLE_MAX_POINTS: usize = 200_000;
 /// surface is not star-shaped from there (common on real meshes, which the ellipsoid only
 /// approximates), the projected boundary can fold over itself. Each crossing drops an
 /// endpoint of one of the crossing segments from the arc it belongs to, for both regions
-/// the arc separates; a few rounds settle it. Deterministic. `charting` gives the
-/// projection the regions are charted with first (and the rest).
+/// the arc separates; a few rounds settle it. Deterministic. `first` says how the regions
+/// are charted (and with which projection first); returns the projection each region's
+/// loops came out uncrossed in (their charts stay in `first`'s [`ChartMemo`]).
 fn untangle(
     rep: &Representation,
     chains: &mut [Vec<u32>],
     points: &[DVec3],
     radial_where_crossing: bool,
     first: Charting,
-) -> (Vec<KnownChart>, Vec<Projection>) {
+) -> Vec<Projection> {
     let projection = first.projection;
     let charting = |projection| Charting {
         projection,
@@ -973,7 +966,6 @@ fn untangle(
     // Regions whose loops changed since they were last looked at: the others would find
     // the same crossings, whose drops were refused.
     let mut changed = vec![true; rep.cycles.len()];
-    let mut charts: Vec<KnownChart> = vec![None; rep.cycles.len()];
     let mut projections = vec![projection; rep.cycles.len()];
     for round in 0..UNTANGLE_ROUNDS {
         // (arc, position in its chain) of the points to drop.
@@ -983,8 +975,7 @@ fn untangle(
                 continue;
             }
             let before = drop.len();
-            let crossings;
-            (charts[r], crossings) = region_crossings(
+            let (_, crossings) = region_crossings(
                 r as u32,
                 rep,
                 chains,
@@ -1009,13 +1000,12 @@ fn untangle(
                 );
                 if radial.is_some() && radial_crossings == 0 {
                     drop.truncate(before);
-                    charts[r] = radial;
                     projections[r] = Projection::Radial;
                 }
             }
         }
         if drop.is_empty() {
-            return (charts, projections);
+            return projections;
         }
         changed.fill(false);
         drop.sort_unstable();
@@ -1038,11 +1028,8 @@ fn untangle(
             }
         }
     }
-    (charts, projections)
+    projections
 }
-
-/// A region's loops and the chart [`region_crossings`] made of them.
-type KnownChart = Option<(Vec<Vec<DVec3>>, RegionChart)>;
 
 /// Where a loop point sits in the refined arcs, if it may be dropped: (arc, position).
 type Droppable = Option<(u32, usize)>;
@@ -1060,8 +1047,9 @@ struct Charting<'a> {
 }
 
 /// Finds the crossings of one region's loops in its chart and, for each, a point to drop
-/// (where one of the two segments has a point that may be dropped); returns the chart and
-/// the number of crossings, droppable or not.
+/// (where one of the two segments has a point that may be dropped); returns how many loops
+/// were charted (`None`: the region has no chart) and the number of crossings, droppable
+/// or not. The chart stays in `charting`'s [`ChartMemo`], for meshing to find.
 fn region_crossings(
     region: u32,
     rep: &Representation,
@@ -1069,7 +1057,7 @@ fn region_crossings(
     points: &[DVec3],
     charting: Charting,
     drop: &mut Vec<(u32, usize)>,
-) -> (KnownChart, usize) {
+) -> (Option<usize>, usize) {
     let Charting {
         projection,
         walk,
@@ -1164,7 +1152,7 @@ fn region_crossings(
             }
         }
     }
-    (Some((loop_points, chart)), crossings)
+    (Some(loop_points.len()), crossings)
 }
 
 /// Whether two segments cross at a point inside both (shared endpoints do not count).
@@ -2586,7 +2574,7 @@ mod tests {
         let chains: Vec<Vec<u32>> = rep.arcs.iter().map(|a| a.points.clone()).collect();
         let crossings = |skip_degenerate: bool| {
             let mut drop = Vec::new();
-            let (chart, crossings) = region_crossings(
+            let (charted, crossings) = region_crossings(
                 0,
                 &rep,
                 &chains,
@@ -2599,7 +2587,7 @@ mod tests {
                 },
                 &mut drop,
             );
-            (chart.map(|(loops, _)| loops.len()), crossings, drop)
+            (charted, crossings, drop)
         };
         assert_eq!(crossings(false), (None, 0, vec![]));
         let (loops, found, drop) = crossings(true);
