@@ -24,7 +24,7 @@ use crate::format::{self, simplify::DEFAULT_RELATIVE_TOLERANCE, EncodeError, Enc
 use crate::mesh::{Aabb, Mesh};
 use crate::remesh::assemble::Treatment;
 use crate::remesh::refine::Prune;
-use crate::remesh::Remeshed;
+use crate::remesh::{ChartMemo, Remeshed};
 use crate::representation::{InvalidRepresentation, Metadata, Representation};
 use crate::segment::proxy::speck_faces;
 use crate::segment::{
@@ -780,6 +780,9 @@ struct Source<'a> {
     centroids: Vec<DVec3>,
     /// Each face's axis-aligned bounding box.
     face_boxes: Vec<Aabb>,
+    /// The charts of every decode of this source's files ([`ChartMemo`]): a round of
+    /// mending changes a few regions, and the check meets the others' charts again.
+    charts: ChartMemo,
 }
 
 impl Source<'_> {
@@ -802,6 +805,7 @@ impl Source<'_> {
                     }
                 })
                 .collect(),
+            charts: ChartMemo::default(),
         }
     }
 
@@ -1072,7 +1076,7 @@ fn verify(
     labels: &[u32],
 ) -> Result<(Verdict, Option<Treatment>), EncodeMeshError> {
     use crate::remesh::assemble::{problem_regions, region_faults};
-    use crate::remesh::{remesh, RemeshError, RemeshOptions};
+    use crate::remesh::{remesh_with_charts, RemeshError, RemeshOptions};
     let source_manifold = source.manifold;
     let representation = format::decode(bytes, &format::Limits::default())?;
     // A file that decodes only with regions left out ranks as one that does not decode:
@@ -1081,7 +1085,7 @@ fn verify(
         leave_out: false,
         ..RemeshOptions::default()
     };
-    let out = match remesh(&representation, &options) {
+    let out = match remesh_with_charts(&representation, &options, &source.charts) {
         Ok(out) => out,
         // The decoder reports the region its last attempt stopped at, which is often not
         // where its first (and best) attempt failed. Blamed instead: the first region that
@@ -1091,7 +1095,7 @@ fn verify(
         // Blamed too: every whole region far beyond its piece (`Source::far_whole_regions`),
         // which decoders leaving out the failing region would mesh.
         Err(RemeshError::Region { region, what }) => {
-            let split = region_faults(&representation, &options)?
+            let split = region_faults(&representation, &options, &source.charts)?
                 .first()
                 .map(|f| Split {
                     region: f.region,
@@ -1273,7 +1277,7 @@ fn closest_treatment(
     for &t in later {
         hinted.metadata.remesh_hint = Some(t.code());
         // The file decoded clean with `used`: an error here is no reason to fail.
-        let Ok(out) = crate::remesh::remesh(&hinted, options) else {
+        let Ok(out) = crate::remesh::remesh_with_charts(&hinted, options, &source.charts) else {
             continue;
         };
         let keeps_to_source = || {

@@ -332,7 +332,12 @@ fn real_meshes_with_unchartable_regions_are_split_until_they_decode_clean() {
         let plain_clean = plain.as_ref().is_ok_and(|r| r.check.is_clean());
         if plain.as_ref().map_or(true, |r| !r.omitted.is_empty()) {
             // The decoder's first attempt fails somewhere, and region_faults says where.
-            let faults = ellip::remesh::assemble::region_faults(&rep, &options).unwrap();
+            let faults = ellip::remesh::assemble::region_faults(
+                &rep,
+                &options,
+                &ellip::remesh::ChartMemo::default(),
+            )
+            .unwrap();
             assert!(!faults.is_empty(), "{name}");
             // Folds name two loop edges apart in space that cross in the chart.
             for f in faults.iter().filter_map(|f| f.crossing) {

@@ -10,8 +10,8 @@ use ellip::format::{decode, Limits};
 use ellip::import::{read_mesh, ImportOptions};
 use ellip::remesh::subdivide::subdivide;
 use ellip::remesh::{
-    remesh, RemeshOptions, Remeshed, Scheme, SUBDIVISION_COARSE_VERTICES,
-    SUBDIVISION_VERTICES_PER_REGION,
+    remesh, remesh_with_charts, ChartMemo, RemeshOptions, Remeshed, Scheme,
+    SUBDIVISION_COARSE_VERTICES, SUBDIVISION_VERTICES_PER_REGION,
 };
 use ellip::representation::Representation;
 use ellip::rng::SplitMix64;
@@ -1164,6 +1164,37 @@ fn decoding_is_deterministic() {
         assert_eq!(a.normals, b.normals);
         assert_eq!(a.face_regions, b.face_regions);
     }
+}
+
+/// Charts kept across decodes ([`remesh_with_charts`], as the encoder's check keeps them
+/// across its rounds of mending) leave every file's mesh as it is decoded alone; a file
+/// decoded again finds every chart it needs among them, and those of the decode before
+/// the last are dropped.
+#[test]
+fn charts_kept_across_decodes_change_no_mesh() {
+    let files: Vec<Representation> = ["blob2.obj", "blob3.obj"]
+        .iter()
+        .map(|name| encode_unchecked(&source(name), blob_ellipsoids(name)).1)
+        .collect();
+    let at = options(3000, Scheme::Adaptive);
+    let charts = ChartMemo::default();
+    let mut kept = Vec::new();
+    for rep in [&files[0], &files[0], &files[1], &files[1]] {
+        let shared = remesh_with_charts(rep, &at, &charts).unwrap();
+        let alone = remesh(rep, &at).unwrap();
+        assert_eq!(shared.mesh.positions(), alone.mesh.positions());
+        assert_eq!(shared.mesh.faces(), alone.mesh.faces());
+        assert_eq!(shared.normals, alone.normals);
+        assert_eq!(shared.face_regions, alone.face_regions);
+        kept.push(charts.len());
+    }
+    // A chart a region at least for the first file, all found again by its second decode;
+    // none of the second file's found among them; the first's dropped after two decodes
+    // that did not ask for them.
+    assert!(kept[0] >= files[0].region_count(), "{kept:?}");
+    assert_eq!(kept[1], kept[0]);
+    assert!(kept[2] >= kept[1] + files[1].region_count(), "{kept:?}");
+    assert_eq!(kept[3], kept[2] - kept[0]);
 }
 
 #[test]

@@ -138,13 +138,16 @@ struct Prepared {
     tolerance: Option<f64>,
     areas: Vec<f64>,
     settings: RefineSettings,
-    /// The charts every attempt makes, made once ([`ChartMemo`]).
-    charts: ChartMemo,
 }
 
 impl Prepared {
-    /// The first attempt's plan ([`Treatment::FIRST`]).
-    fn plan<'a>(&'a self, rep: &'a Representation, options: &'a RemeshOptions) -> Plan<'a> {
+    /// The first attempt's plan ([`Treatment::FIRST`]), its charts made in `charts`.
+    fn plan<'a>(
+        &'a self,
+        rep: &'a Representation,
+        options: &'a RemeshOptions,
+        charts: &'a ChartMemo,
+    ) -> Plan<'a> {
         Plan {
             rep,
             options,
@@ -155,7 +158,7 @@ impl Prepared {
             settings: self.settings,
             treatment: Treatment::FIRST,
             leave_out: false,
-            charts: &self.charts,
+            charts,
         }
     }
 }
@@ -205,7 +208,6 @@ fn prepare(rep: &Representation, options: &RemeshOptions) -> Result<Prepared, Re
         tolerance,
         areas,
         settings,
-        charts: ChartMemo::default(),
     })
 }
 
@@ -222,13 +224,14 @@ pub struct RegionFault {
 /// The regions whose chart or boundary triangulation fails in the decoder's first attempt
 /// (refined, untangled arcs reaching the ellipsoids at their closest points), all of them
 /// rather than the first: what [`assemble`] would have to fall back from. In increasing
-/// order of region, one fault per region.
+/// order of region, one fault per region. Its charts are made in `charts` ([`ChartMemo`]).
 pub fn region_faults(
     rep: &Representation,
     options: &RemeshOptions,
+    charts: &ChartMemo,
 ) -> Result<Vec<RegionFault>, RemeshError> {
     let prepared = prepare(rep, options)?;
-    let (faults, _) = prepared.plan(rep, options).faults()?;
+    let (faults, _) = prepared.plan(rep, options, charts).faults()?;
     Ok(faults)
 }
 
@@ -244,10 +247,15 @@ pub fn region_faults(
 /// [`RemeshOptions::leave_out`] the attempts are made again leaving out each region that
 /// fails ([`MeshCheck::omitted_regions`]), untangling regions whose loops include one that
 /// encloses nothing; if that fails too, the first error stands.
-/// [`Remeshed::attempts`] counts the meshings made.
-pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshed, RemeshError> {
+/// [`Remeshed::attempts`] counts the meshings made. Every attempt's charts are made in
+/// `charts` ([`ChartMemo`]), once for each distinct input.
+pub fn assemble(
+    rep: &Representation,
+    options: &RemeshOptions,
+    charts: &ChartMemo,
+) -> Result<Remeshed, RemeshError> {
     let mut attempts = 0;
-    let mut out = assemble_counted(rep, options, &mut attempts)?;
+    let mut out = assemble_counted(rep, options, charts, &mut attempts)?;
     out.attempts = attempts;
     Ok(out)
 }
@@ -256,6 +264,7 @@ pub fn assemble(rep: &Representation, options: &RemeshOptions) -> Result<Remeshe
 fn assemble_counted(
     rep: &Representation,
     options: &RemeshOptions,
+    charts: &ChartMemo,
     attempts: &mut usize,
 ) -> Result<Remeshed, RemeshError> {
     rep.validate()?;
@@ -274,7 +283,8 @@ fn assemble_counted(
             vertices: Some(coarse_budget),
             ..options.clone()
         };
-        let Ok(coarse) = assemble_unsubdivided(rep, &coarse_options, false, attempts) else {
+        let Ok(coarse) = assemble_unsubdivided(rep, &coarse_options, false, charts, attempts)
+        else {
             break;
         };
         match subdivide(rep, coarse, levels, options.max_vertices) {
@@ -287,18 +297,18 @@ fn assemble_counted(
         if budget > FALLBACK_MAX_VERTICES {
             return Ok(kept);
         }
-        return match assemble_unsubdivided(rep, options, false, attempts) {
+        return match assemble_unsubdivided(rep, options, false, charts, attempts) {
             Ok(out) if rank(&out, None) < rank(&kept, None) => Ok(out),
             _ => Ok(kept),
         };
     }
-    match assemble_unsubdivided(rep, options, false, attempts) {
+    match assemble_unsubdivided(rep, options, false, charts, attempts) {
         // Some region fails in every attempt (a scan's fragment a few quantisation steps
         // across whose loops enclose nothing on its needle of an ellipsoid, loops that
         // cross however they are untangled): rather than no mesh at all, the others, with a
         // hole where it would be, counted in MeshCheck::omitted_regions.
         Err(e @ RemeshError::Region { .. }) if options.leave_out => {
-            assemble_unsubdivided(rep, options, true, attempts).map_err(|_| e)
+            assemble_unsubdivided(rep, options, true, charts, attempts).map_err(|_| e)
         }
         other => other,
     }
@@ -372,6 +382,7 @@ fn assemble_unsubdivided(
     rep: &Representation,
     options: &RemeshOptions,
     leave_out: bool,
+    charts: &ChartMemo,
     made: &mut usize,
 ) -> Result<Remeshed, RemeshError> {
     let prepared = prepare(rep, options)?;
@@ -380,7 +391,7 @@ fn assemble_unsubdivided(
     // K = 12 at 5 000: 3 784, 4 103 at best in 9 meshings).
     let wanted = (options.scheme == Scheme::Adaptive && prepared.tolerance.is_none())
         .then_some(prepared.budget);
-    let mut plan = prepared.plan(rep, options);
+    let mut plan = prepared.plan(rep, options, charts);
     plan.leave_out = leave_out;
     let mut attempts = Treatment::sequence(&prepared.settings);
     // The file's hint first: the treatment that meshed it clean when it was written (at
@@ -2670,7 +2681,10 @@ mod tests {
             },
         ] {
             assert!(
-                matches!(assemble(&rep, &bad), Err(RemeshError::InvalidOption { .. })),
+                matches!(
+                    assemble(&rep, &bad, &ChartMemo::default()),
+                    Err(RemeshError::InvalidOption { .. })
+                ),
                 "{bad:?}"
             );
         }

@@ -16,9 +16,9 @@
 use super::RemeshError;
 use crate::ellipsoid::{Ellipsoid, Sign};
 use glam::{DQuat, DVec2, DVec3};
-use std::cell::RefCell;
 use std::cmp::Ordering;
 use std::collections::{BinaryHeap, HashMap};
+use std::sync::Mutex;
 
 /// Number of evenly spread (Fibonacci) directions tried as poles, besides the loops' own
 /// centres and their antipodes.
@@ -104,14 +104,32 @@ pub enum PoleWalk {
 /// file that needs several meshing attempts (boundary treatments) charts most of its regions
 /// alike in each, untangling and then meshing them. Snowden's head scan (npm), whose file
 /// decodes in 14 meshings, made 1 479 charts of which 614 had distinct inputs; `regr01`
-/// (assimp) 2 483, of which 372. A hit is the chart made before, bit for bit. Charts of more
-/// than [`MEMO_MAX_POINTS`] loop points in all are made but not kept.
+/// (assimp) 2 483, of which 372. A hit is the chart made before, bit for bit.
+///
+/// One memo serves one decode ([`super::remesh`]), or the decodes of a caller that decodes
+/// files alike one after another ([`super::remesh_with_charts`]): the encoder's check,
+/// whose rounds of mending change a few regions at a time. [`ChartMemo::age`], at the start
+/// of each of those decodes, drops the charts the decode before did not ask for, so that
+/// the memo holds two decodes' charts at most, and charts of more than [`MEMO_MAX_POINTS`]
+/// loop points in all are made but not kept. Shared between threads, it is locked while a
+/// chart is looked up or kept, not while one is made.
 #[derive(Debug, Default)]
 pub struct ChartMemo {
-    /// Each chart (or why there is none) by [`chart_key`].
-    charts: RefCell<HashMap<Vec<u64>, Result<RegionChart, &'static str>>>,
-    /// The loop points of the charts kept.
-    points: std::cell::Cell<usize>,
+    kept: Mutex<KeptCharts>,
+}
+
+/// A chart kept by a [`ChartMemo`] (or why there is none), with its loop points.
+type KeptChart = (Result<RegionChart, &'static str>, usize);
+
+/// What a [`ChartMemo`] holds, by [`chart_key`].
+#[derive(Debug, Default)]
+struct KeptCharts {
+    /// The charts asked for since the last [`ChartMemo::age`].
+    current: HashMap<Vec<u64>, KeptChart>,
+    /// The charts asked for before it and not since.
+    previous: HashMap<Vec<u64>, KeptChart>,
+    /// The loop points of the charts kept, in both.
+    points: usize,
 }
 
 /// Most loop points the charts a [`ChartMemo`] keeps may have in all: about 100 bytes each
@@ -129,25 +147,66 @@ impl ChartMemo {
         projection: Projection,
         walk: PoleWalk,
     ) -> Result<RegionChart, RemeshError> {
-        let key = chart_key(ellipsoid, loops, projection, walk);
-        if let Some(known) = self.charts.borrow().get(&key) {
-            return known
+        let named = |known: &Result<RegionChart, &'static str>| {
+            known
                 .clone()
-                .map_err(|what| RemeshError::Region { region, what });
+                .map_err(|what| RemeshError::Region { region, what })
+        };
+        let key = chart_key(ellipsoid, loops, projection, walk);
+        {
+            let mut memo = self.lock();
+            if let Some((known, _)) = memo.current.get(&key) {
+                return named(known);
+            }
+            if let Some((key, known)) = memo.previous.remove_entry(&key) {
+                let chart = named(&known.0);
+                memo.current.insert(key, known);
+                return chart;
+            }
         }
         let made = RegionChart::with_projection(region, ellipsoid, loops, projection, walk);
-        let points = self.points.get() + loops.iter().map(Vec::len).sum::<usize>();
-        if points > MEMO_MAX_POINTS {
-            return made;
-        }
-        self.points.set(points);
         let kept = match &made {
             Ok(chart) => Ok(chart.clone()),
             Err(RemeshError::Region { what, .. }) => Err(*what),
             Err(_) => return made,
         };
-        self.charts.borrow_mut().insert(key, kept);
+        let count = loops.iter().map(Vec::len).sum::<usize>();
+        let mut memo = self.lock();
+        let points = memo.points + count;
+        if points <= MEMO_MAX_POINTS && !memo.current.contains_key(&key) {
+            memo.points = points;
+            memo.current.insert(key, (kept, count));
+        }
         made
+    }
+
+    /// Drops the charts not asked for since the last call: the charts asked for since then
+    /// are kept for the next, the others forgotten. Called by
+    /// [`super::remesh_with_charts`] as each decode starts.
+    pub fn age(&self) {
+        let mut memo = self.lock();
+        let dropped: usize = memo.previous.values().map(|&(_, count)| count).sum();
+        memo.points -= dropped;
+        memo.previous = std::mem::take(&mut memo.current);
+    }
+
+    /// How many distinct inputs' charts (or failures) are kept.
+    pub fn len(&self) -> usize {
+        let memo = self.lock();
+        memo.current.len() + memo.previous.len()
+    }
+
+    /// Whether no chart is kept.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The memo, locked. A thread that panicked while holding it left it whole (a chart is
+    /// inserted in one call), so a poisoned lock is taken as it is.
+    fn lock(&self) -> std::sync::MutexGuard<'_, KeptCharts> {
+        self.kept
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
     }
 }
 
@@ -1023,7 +1082,7 @@ mod tests {
             let chart = memo.chart(3, &e, &loops, free.0, free.1).unwrap();
             assert_eq!(chart, made(&loops, free.0, free.1));
         }
-        assert_eq!(memo.charts.borrow().len(), 1);
+        assert_eq!(memo.len(), 1);
         // The premise: another projection is another chart.
         assert_ne!(
             made(&loops, Projection::Radial, PoleWalk::Free),
@@ -1040,7 +1099,7 @@ mod tests {
         moved[0].z = f64::from_bits(moved[0].z.to_bits() + 1);
         let chart = memo.chart(3, &e, &[moved.clone()], free.0, free.1).unwrap();
         assert_eq!(chart, made(&[moved], free.0, free.1));
-        assert_eq!(memo.charts.borrow().len(), 4);
+        assert_eq!(memo.len(), 4);
         // A loop that encloses nothing: the error, for whichever region asks.
         let collapsed = vec![vec![DVec3::Z; 3]];
         for region in [5, 6] {
@@ -1049,7 +1108,16 @@ mod tests {
                 other => panic!("{other:?}"),
             }
         }
-        assert_eq!(memo.charts.borrow().len(), 5);
+        assert_eq!(memo.len(), 5);
+        // Aged, the charts asked for since are kept for the next age, the others dropped.
+        memo.age();
+        assert_eq!(memo.len(), 5);
+        let chart = memo.chart(3, &e, &loops, free.0, free.1).unwrap();
+        assert_eq!(chart, made(&loops, free.0, free.1));
+        memo.age();
+        assert_eq!(memo.len(), 1);
+        memo.age();
+        assert!(memo.is_empty());
     }
 
     #[test]

@@ -28,6 +28,8 @@ pub mod subdivide;
 pub mod surface;
 pub mod triangulate;
 
+pub use chart::ChartMemo;
+
 use crate::mesh::{Mesh, MeshError};
 use crate::representation::{InvalidRepresentation, Representation};
 use glam::DVec3;
@@ -281,5 +283,20 @@ pub enum RemeshError {
 /// ([`triangulate`]) sharing the vertex budget among them by their error, and joins them
 /// into one mesh ([`assemble`]). Deterministic: the same input gives the same mesh.
 pub fn remesh(rep: &Representation, options: &RemeshOptions) -> Result<Remeshed, RemeshError> {
-    assemble::assemble(rep, options)
+    remesh_with_charts(rep, options, &ChartMemo::default())
+}
+
+/// [`remesh`], its charts kept in `charts` and taken from there when a region's chart has
+/// the same inputs (ellipsoid, loop points, projection, pole walk) as one made in this
+/// call or the one before: for a caller that decodes representations alike one after
+/// another, each a few regions from the last (the encoder's check of its rounds of
+/// mending). The mesh is the same as [`remesh`]'s, bit for bit ([`ChartMemo`]). The
+/// charts that the call before did not ask for are dropped first ([`ChartMemo::age`]).
+pub fn remesh_with_charts(
+    rep: &Representation,
+    options: &RemeshOptions,
+    charts: &ChartMemo,
+) -> Result<Remeshed, RemeshError> {
+    charts.age();
+    assemble::assemble(rep, options, charts)
 }
