@@ -45,7 +45,8 @@ pub struct EncodeArgs {
     /// the encoder decodes what it wrote and mends each region that does not mesh cleanly:
     /// a boundary that folds in its chart is stored at the mesh's own points, a small region
     /// is dissolved into its neighbours, another is split, and so is a region decoded a
-    /// tenth of the diagonal farther from the mesh than its ellipsoid lies; so the file may
+    /// tenth of the diagonal farther from the mesh than its ellipsoid lies (or 2 % farther
+    /// in RMS); so the file may
     /// hold more or fewer regions than -k asks for. A file the decoder meshes clean only
     /// after its first boundary treatment names the one that works (a remesh hint, 2 bytes),
     /// so that decoders mesh it once; so does a file that the arcs as stored mesh clean and
