@@ -1316,10 +1316,12 @@ fn flat_capped_cylinder_obj() -> String {
 }
 
 /// `ellip decode --json` reports the budget it was asked for, and a decode more than 1 %
-/// short of it says so on standard error (and only then). The flat-capped cylinder's
-/// parametric grid gives 4 275 vertices at 5 000 (3 952 before the grid's azimuths were
-/// scaled); vertex addition meets the budget. (Once the sphere fixture's 9 829 at 10 000;
-/// its grid now meets the count.)
+/// short of it says so on standard error (and only then). The flat-capped cylinder,
+/// written without the decoder check, has nearly flat regions whose boundaries lie far off
+/// their ellipsoids: vertex addition stops at 63 vertices of 5 000, where the parametric
+/// grid gives 5 519. (Its checked file's grid gave 4 275 until the check measured regions
+/// off the source in RMS too; now both schemes meet the budget there. Once the sphere
+/// fixture's grid gave 9 829 at 10 000.)
 #[test]
 fn a_decode_short_of_its_budget_says_so() {
     let dir = scratch("short");
@@ -1331,6 +1333,7 @@ fn a_decode_short_of_its_budget_says_so() {
         mesh.to_str().unwrap(),
         "-o",
         input.to_str().unwrap(),
+        "--no-verify",
         "--quiet",
     ]);
     assert!(
@@ -1365,7 +1368,7 @@ fn a_decode_short_of_its_budget_says_so() {
         );
         shorts += usize::from(short);
     }
-    assert_eq!(shorts, 1, "the parametric decode is the short one");
+    assert_eq!(shorts, 1, "the adaptive decode is the short one");
     std::fs::remove_dir_all(&dir).ok();
 }
 
