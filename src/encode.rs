@@ -975,21 +975,23 @@ impl Source<'_> {
         // the first leaf).
         let bound =
             |region: u32| missed_rms.get(region as usize).copied().unwrap_or(0.0) + 0.5 * rms_limit;
-        let distance_to_source = |f: usize, within: Option<f64>| -> (f64, bool) {
-            let c = decoded.face_centroid(f);
-            if within.is_some_and(|w| self.faces.is_within(c, w)) {
-                return (within.unwrap_or(0.0), false);
-            }
-            let d = self
-                .faces
-                .find_closest(c)
-                .map_or(f64::INFINITY, |hit| hit.distance_squared.sqrt());
-            (d, true)
+        let distance_to_source = |f: usize| {
+            self.faces
+                .find_closest(decoded.face_centroid(f))
+                .map_or(f64::INFINITY, |hit| hit.distance_squared.sqrt())
         };
+        // (distance or its bound, whether exact) per decoded face.
         let made_up: Vec<(f64, bool)> = face_regions
             .par_iter()
             .enumerate()
-            .map(|(f, &region)| distance_to_source(f, Some(bound(region))))
+            .map(|(f, &region)| {
+                let near = bound(region);
+                if self.faces.is_within(decoded.face_centroid(f), near) {
+                    (near, false)
+                } else {
+                    (distance_to_source(f), true)
+                }
+            })
             .collect();
         // Per region, its decoded area and (at most) the squares of its faces' distances.
         let mut decoded_areas = vec![0.0f64; ellipsoids.len()];
@@ -1008,7 +1010,8 @@ impl Source<'_> {
                 *squares += d * d * a;
             }
         }
-        // The regions whose bound passes the RMS limit, measured exactly (few, if any).
+        // The regions whose bound passes the RMS limit, measured exactly (few, if any): the
+        // faces only bounded so far.
         let rms_excess = |r: usize, squares: f64| {
             let area = decoded_areas[r];
             if area > 0.0 {
@@ -1027,7 +1030,10 @@ impl Source<'_> {
                 .enumerate()
                 .filter(|&(_, &region)| region as usize == r)
                 .map(|(f, _)| {
-                    let (d, _) = distance_to_source(f, None);
+                    let d = match made_up[f] {
+                        (d, true) => d,
+                        (_, false) => distance_to_source(f),
+                    };
                     d * d * decoded.face_area(f)
                 })
                 .sum();
