@@ -18,7 +18,7 @@ use crate::ellipsoid::{Ellipsoid, Sign};
 use glam::{DQuat, DVec2, DVec3};
 use std::cmp::Ordering;
 use std::collections::{BinaryHeap, HashMap};
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 /// Number of evenly spread (Fibonacci) directions tried as poles, besides the loops' own
 /// centres and their antipodes.
@@ -56,6 +56,39 @@ pub struct RegionChart {
     empty: bool,
     /// How points off the surface reach it ([`RegionChart::to_sphere`]).
     projection: Projection,
+    /// The unit-sphere directions of the boundary points the chart was made from.
+    known: KnownDirections,
+}
+
+/// The unit-sphere directions [`RegionChart::to_sphere`] gave for the boundary points a
+/// chart was made from, sorted by the points' bits: the meshing maps the same points again
+/// (untangling's crossing test, the boundary's offsets, the boundary-only triangulation),
+/// and their closest points on the ellipsoid are iterative. Snowden's encode spent 14 % of
+/// its time in `Ellipsoid::closest_point`, much of it on loop points mapped before. A cache,
+/// not part of what the chart is: any two compare equal.
+#[derive(Debug, Clone, Default)]
+struct KnownDirections(Arc<Vec<([u64; 3], DVec3)>>);
+
+impl KnownDirections {
+    /// The table of these (point, direction) pairs (the first of a repeated point kept).
+    fn new(mut pairs: Vec<([u64; 3], DVec3)>) -> KnownDirections {
+        pairs.sort_by_key(|&(bits, _)| bits);
+        pairs.dedup_by_key(|&mut (bits, _)| bits);
+        KnownDirections(Arc::new(pairs))
+    }
+
+    /// The direction kept for `p`, if it is one of the points.
+    fn get(&self, p: DVec3) -> Option<DVec3> {
+        let bits = p.to_array().map(f64::to_bits);
+        let found = self.0.binary_search_by_key(&bits, |&(b, _)| b).ok()?;
+        self.0.get(found).map(|&(_, u)| u)
+    }
+}
+
+impl PartialEq for KnownDirections {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
 }
 
 /// How a chart maps a point that is not on its ellipsoid (a stored boundary point) to the
@@ -295,11 +328,16 @@ impl RegionChart {
             ..RegionChart::with_pole(ellipsoid, DVec3::Z)
         };
         let mut sphere_loops = Vec::with_capacity(loops.len());
+        let mut known = Vec::with_capacity(loops.iter().map(Vec::len).sum());
         for l in loops {
             if l.iter().any(|p| !p.is_finite()) {
                 return Err(fail("boundary point not finite"));
             }
-            let mut s = dedup_directions(l.iter().map(|&p| probe.to_sphere(p)));
+            let mut s = dedup_directions(l.iter().map(|&p| {
+                let u = probe.to_sphere(p);
+                known.push((p.to_array().map(f64::to_bits), u));
+                u
+            }));
             if count_distinct(&s) < 3 {
                 return Err(fail("boundary loop has fewer than 3 distinct points"));
             }
@@ -321,6 +359,7 @@ impl RegionChart {
         chart.plane_loops = project_loops(&chart, &sphere_loops);
         chart.clearance = clearance;
         chart.index = EdgeIndex::new(&chart.plane_loops);
+        chart.known = KnownDirections::new(known);
         Ok(chart)
     }
 
@@ -337,6 +376,7 @@ impl RegionChart {
             index: EdgeIndex::default(),
             empty: false,
             projection: Projection::Closest,
+            known: KnownDirections::default(),
         }
     }
 
@@ -384,8 +424,12 @@ impl RegionChart {
 
     /// A point (on or near the ellipsoid) → the unit-sphere direction of its closest surface
     /// point ([`Ellipsoid::closest_point`]: along the normal, so nearby boundary points keep
-    /// their order however oblique the radial direction is).
+    /// their order however oblique the radial direction is). For the boundary points the
+    /// chart was made from, the direction found then.
     pub fn to_sphere(&self, p: DVec3) -> DVec3 {
+        if let Some(u) = self.known.get(p) {
+            return u;
+        }
         let surface = match self.projection {
             Projection::Closest => self.ellipsoid.closest_point(p),
             Projection::Radial => p,
@@ -1118,6 +1162,58 @@ mod tests {
         assert_eq!(memo.len(), 1);
         memo.age();
         assert!(memo.is_empty());
+    }
+
+    /// A chart maps the boundary points it was made from to the directions it found then
+    /// (its table), and those are what the projection gives, bit for bit, under every
+    /// projection; other points are mapped afresh.
+    #[test]
+    fn a_charts_loop_points_map_as_the_projection_maps_them() {
+        let e = Ellipsoid {
+            center: DVec3::new(0.3, -0.2, 0.1),
+            rotation: DQuat::from_rotation_y(0.4),
+            radii: DVec3::new(1.0, 1.5, 0.7),
+            sign: Sign::Positive,
+        };
+        let inner = Ellipsoid {
+            radii: e.radii * 0.8,
+            ..e
+        };
+        let cap: Vec<DVec3> = (0..12)
+            .map(|k| {
+                let a = k as f64 * std::f64::consts::TAU / 12.0;
+                e.center + e.rotation * DVec3::new(0.7 * a.cos(), 0.9 * a.sin(), 0.6)
+            })
+            .collect();
+        let other = e.center + e.rotation * DVec3::new(0.1, 0.2, 0.9);
+        for (chart_e, projection) in [
+            (e, Projection::Closest),
+            (e, Projection::Radial),
+            (inner, Projection::NormalOnto(e)),
+        ] {
+            let chart = RegionChart::with_projection(
+                0,
+                &chart_e,
+                std::slice::from_ref(&cap),
+                projection,
+                PoleWalk::Free,
+            )
+            .unwrap();
+            assert_eq!(chart.known.0.len(), cap.len());
+            // The same ellipsoid and projection, no table.
+            let fresh = RegionChart {
+                projection,
+                ..RegionChart::with_pole(&chart_e, DVec3::Z)
+            };
+            assert!(fresh.known.0.is_empty());
+            for &p in cap.iter().chain([&other]) {
+                let (kept, made) = (chart.to_sphere(p), fresh.to_sphere(p));
+                assert_eq!(
+                    kept.to_array().map(f64::to_bits),
+                    made.to_array().map(f64::to_bits)
+                );
+            }
+        }
     }
 
     #[test]
