@@ -29,6 +29,7 @@ impl Region {
             boundary: &self.boundary,
             loops: &self.loops,
             seeds: &[],
+            expected_vertices: 0,
         }
     }
 }

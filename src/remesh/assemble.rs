@@ -896,9 +896,12 @@ impl Plan<'_> {
                 _ => Lift::Radial(*ellipsoid),
             };
             let surface = RegionSurface::lifted(chart, lift);
-            pieces.push(
-                Piece::new(region, surface, &loops, &pool.positions, area).with_offsets(spacing),
-            );
+            let piece =
+                Piece::new(region, surface, &loops, &pool.positions, area).with_offsets(spacing);
+            pieces.push(Piece {
+                expected_vertices: expected_vertices(area, spacing),
+                ..piece
+            });
         }
         if pool.positions.len() > options.max_vertices {
             return Err(RemeshError::TooManyVertices {
@@ -1420,6 +1423,8 @@ struct Piece {
     global: Vec<u32>,
     /// Estimated area (model units²).
     area: f64,
+    /// About how many vertices it ends with ([`RegionInput::expected_vertices`]).
+    expected_vertices: usize,
     /// Its boundary-only adaptive triangulation, once [`settle_charts`] built it (taken by
     /// [`triangulate_adaptive`], which would otherwise build the same again).
     start: Option<AdaptiveTriangulation>,
@@ -1460,6 +1465,7 @@ impl Piece {
             loops,
             global,
             area,
+            expected_vertices: 0,
             start: None,
             pole: None,
         }
@@ -1541,9 +1547,28 @@ impl Piece {
             boundary: &self.boundary,
             loops: &self.loops,
             seeds: self.pole.as_slice(),
+            expected_vertices: self.expected_vertices,
         }
     }
 }
+
+/// About how many vertices a piece of `area` meshed at the target edge length `spacing`
+/// ends with: its share of the budget by area, as the spacing was found from the budget
+/// ([`prepare`]), half as much again for regions curved more than the mean (vertex
+/// addition shares the budget by error, not area). A capacity hint, at most
+/// [`MAX_EXPECTED_VERTICES`].
+fn expected_vertices(area: f64, spacing: f64) -> usize {
+    let share = 1.5 * 2.0 * area / (3f64.sqrt() * spacing * spacing);
+    if share.is_finite() && share > 0.0 {
+        (share as usize).min(MAX_EXPECTED_VERTICES)
+    } else {
+        0
+    }
+}
+
+/// The most vertices [`expected_vertices`] reserves room for: the budgets vertex addition
+/// meets by itself (larger ones are met by subdivision).
+const MAX_EXPECTED_VERTICES: usize = 1 << 16;
 
 /// Builds every piece's boundary-only adaptive triangulation (kept in [`Piece::start`]),
 /// replacing the chart of a piece whose triangulation fails by the view from beneath it, if
