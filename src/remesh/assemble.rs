@@ -896,12 +896,12 @@ impl Plan<'_> {
                 _ => Lift::Radial(*ellipsoid),
             };
             let surface = RegionSurface::lifted(chart, lift);
-            let piece =
-                Piece::new(region, surface, &loops, &pool.positions, area).with_offsets(spacing);
-            pieces.push(Piece {
-                expected_vertices: expected_vertices(area, spacing),
-                ..piece
-            });
+            pieces.push(
+                Piece::new(region, surface, &loops, &pool.positions, area).with_offsets(spacing),
+            );
+        }
+        for piece in &mut pieces {
+            piece.expected_vertices = expected_vertices(piece.area, spacing);
         }
         if pool.positions.len() > options.max_vertices {
             return Err(RemeshError::TooManyVertices {
