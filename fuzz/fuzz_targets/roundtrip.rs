@@ -3,63 +3,21 @@
 #![no_main]
 
 use arbitrary::Arbitrary;
-use ellip::format::sample::{self, Piece, RawEllipsoid, Recipe};
+use ellip::format::sample;
 use ellip::format::{self, EncodeOptions, Limits};
-use ellip::representation::Metadata;
 use libfuzzer_sys::fuzz_target;
 
-#[derive(Arbitrary, Debug)]
-enum ArbPiece {
-    Lunes(u8, u8),
-    Loop(u8, bool),
-    Whole,
-}
+#[path = "recipe.rs"]
+mod recipe;
 
 #[derive(Arbitrary, Debug)]
 struct Input {
-    ellipsoids: Vec<([f64; 3], [f64; 4], [f64; 3], bool)>,
-    coordinates: Vec<[f64; 3]>,
-    pieces: Vec<ArbPiece>,
+    recipe: recipe::ArbRecipe,
     bits: u8,
-    metadata: (u64, u64, Option<f64>, Option<f64>, Option<u64>, Option<u64>),
 }
 
 fuzz_target!(|input: Input| {
-    let recipe = Recipe {
-        ellipsoids: input
-            .ellipsoids
-            .iter()
-            .map(|&(center, rotation, radii, negative)| RawEllipsoid {
-                center,
-                rotation,
-                radii,
-                negative,
-            })
-            .collect(),
-        coordinates: input.coordinates.clone(),
-        pieces: input
-            .pieces
-            .iter()
-            .take(8)
-            .map(|p| match *p {
-                ArbPiece::Lunes(lunes, interior) => Piece::Lunes {
-                    lunes,
-                    interior: interior % 32,
-                },
-                ArbPiece::Loop(points, border) => Piece::Loop { points, border },
-                ArbPiece::Whole => Piece::Whole,
-            })
-            .collect(),
-        metadata: Metadata {
-            source_vertices: input.metadata.0,
-            source_faces: input.metadata.1,
-            simplify_tolerance: input.metadata.2,
-            measured_error: input.metadata.3,
-            measured_hausdorff: input.metadata.3.map(|e| 2.0 * e),
-            suggested_vertices: input.metadata.4,
-            remesh_hint: input.metadata.5,
-        },
-    };
+    let recipe = input.recipe.recipe();
     let rep = sample::build(&recipe);
     let options = EncodeOptions {
         bits: 1 + input.bits % 24,
