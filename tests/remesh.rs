@@ -1802,6 +1802,81 @@ fn regions_no_attempt_can_mesh_are_left_out_as_holes() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// duck at K = 12, written without the encoder's decoder check, decodes with flipped
+/// triangles in several regions: `triangle_faults_by_region` names each region that has
+/// any with its counts, which add up to the check's and agree with each region's own
+/// triangles tested against its ellipsoid; `ellip decode --json` lists the same, and its
+/// warning names them.
+#[test]
+fn flipped_triangles_are_told_by_region() {
+    use ellip::remesh::assemble::{triangle_faults_by_region, RegionTriangleFaults};
+    let Some(mesh) = common::shared_mesh("duck") else {
+        return;
+    };
+    let (bytes, rep) = encode_unchecked(&mesh, 12);
+    let out = remesh(&rep, &RemeshOptions::default()).unwrap();
+    let c = out.check;
+    assert!(c.flipped > 0, "the file decodes clean now: {c:?}");
+    let faults = triangle_faults_by_region(&rep, &out.mesh, &out.face_regions);
+    assert!(faults.windows(2).all(|w| w[0].region < w[1].region));
+    assert!(faults.iter().all(|f| f.flipped + f.degenerate > 0));
+    let total = |count: fn(&RegionTriangleFaults) -> usize| faults.iter().map(count).sum::<usize>();
+    assert_eq!(total(|f| f.flipped), c.flipped);
+    assert_eq!(total(|f| f.degenerate), c.degenerate);
+    // Each region's flipped triangles, counted here: normal against the ellipsoid's at
+    // the centroid (none of these is degenerate).
+    for (r, e) in rep.ellipsoids.iter().enumerate() {
+        let side = e.normal_side();
+        let flipped = (0..out.mesh.face_count())
+            .filter(|&f| out.face_regions[f] == r as u32)
+            .filter(|&f| side.along(out.mesh.face_centroid(f), out.mesh.face_area_vector(f)) < 0.0)
+            .count();
+        let listed = faults.iter().find(|f| f.region == r as u32);
+        assert_eq!(listed.map_or(0, |f| f.flipped), flipped, "region {r}");
+    }
+    let dir = scratch("faulty-regions");
+    let input = dir.join("duck12.ellip");
+    std::fs::write(&input, &bytes).unwrap();
+    let output = dir.join("duck12.ply");
+    let run = ellip(&[
+        "decode",
+        input.to_str().unwrap(),
+        "-o",
+        output.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(run.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let listed: Vec<(u64, u64, u64)> = v["faulty_regions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| {
+            let n = |key: &str| f[key].as_u64().unwrap();
+            (
+                n("region"),
+                n("flipped_triangles"),
+                n("degenerate_triangles"),
+            )
+        })
+        .collect();
+    let expected: Vec<(u64, u64, u64)> = faults
+        .iter()
+        .map(|f| (u64::from(f.region), f.flipped as u64, f.degenerate as u64))
+        .collect();
+    assert_eq!(listed, expected);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    let first = &faults[0];
+    assert!(
+        stderr.contains(&format!(
+            "by region: {} ({} flipped",
+            first.region, first.flipped
+        )),
+        "{stderr}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// The stored boundary edges of `region`, by point index, each the way its cycle runs it.
 fn directed_boundary(rep: &Representation, region: usize) -> Vec<(u32, u32)> {
     let mut directed = Vec::new();

@@ -13,7 +13,7 @@ use ellip::export::{write_mesh, MeshData};
 use ellip::format::{decode, Limits};
 use ellip::import::MeshFormat;
 use ellip::preview::palette::palette;
-use ellip::remesh::assemble::BUDGET_MET;
+use ellip::remesh::assemble::{triangle_faults_by_region, RegionTriangleFaults, BUDGET_MET};
 use ellip::remesh::{remesh, RemeshOptions, Remeshed, Scheme};
 use ellip::representation::Representation;
 use glam::DVec3;
@@ -147,6 +147,10 @@ pub struct DecodeReport {
     /// The regions with no face that were not left out: every boundary loop of theirs
     /// encloses nothing ([`Remeshed::faceless_regions`]), in increasing order.
     empty_regions: Vec<u32>,
+    /// The regions with flipped or degenerate triangles, each with its counts, in
+    /// increasing order ([`triangle_faults_by_region`]; they add up to
+    /// `flipped_triangles` and `degenerate_triangles`).
+    faulty_regions: Vec<FaultyRegion>,
     colored: bool,
     /// How many times the regions were meshed ([`Remeshed::attempts`]).
     meshing_attempts: usize,
@@ -154,6 +158,14 @@ pub struct DecodeReport {
     /// `Treatment::code`: what a file's remesh hint would name).
     treatment: Option<u64>,
     seconds: f64,
+}
+
+/// A region with flipped or degenerate triangles, in [`DecodeReport`].
+#[derive(Debug, Serialize)]
+pub struct FaultyRegion {
+    region: u32,
+    flipped_triangles: usize,
+    degenerate_triangles: usize,
 }
 
 pub fn run(args: &DecodeArgs) -> Result<(), CliError> {
@@ -235,8 +247,17 @@ pub fn remesh_and_write(
         write_mesh(output, &data)?;
     }
     let check = remeshed.check;
+    let faulty = if check.flipped + check.degenerate > 0 {
+        triangle_faults_by_region(rep, &remeshed.mesh, &remeshed.face_regions)
+    } else {
+        Vec::new()
+    };
     if !quiet && !check.is_clean() {
-        eprintln!("warning: the mesh is not clean: {}", check.faults());
+        eprintln!(
+            "warning: the mesh is not clean: {}{}",
+            check.faults(),
+            faults_by_region(&faulty)
+        );
     }
     let budget = options.budget(rep);
     let vertices = remeshed.mesh.vertex_count();
@@ -285,11 +306,49 @@ pub fn remesh_and_write(
         flipped_triangles: check.flipped,
         omitted_regions: remeshed.omitted.clone(),
         empty_regions: empty,
+        faulty_regions: faulty
+            .into_iter()
+            .map(|f| FaultyRegion {
+                region: f.region,
+                flipped_triangles: f.flipped,
+                degenerate_triangles: f.degenerate,
+            })
+            .collect(),
         colored,
         meshing_attempts: remeshed.attempts,
         treatment: remeshed.treatment.map(|t| t.code()),
         seconds,
     })
+}
+
+/// Most regions the warning about flipped and degenerate triangles names (`--json` lists
+/// them all).
+const LISTED_FAULTY_REGIONS: usize = 10;
+
+/// Where the flipped and degenerate triangles are, for the warning about a mesh that is not
+/// clean: "; by region: 10 (1 flipped), 24 (2 flipped and 1 degenerate)", the first
+/// [`LISTED_FAULTY_REGIONS`] and how many more; empty when there are none.
+fn faults_by_region(faulty: &[RegionTriangleFaults]) -> String {
+    if faulty.is_empty() {
+        return String::new();
+    }
+    let listed: Vec<String> = faulty
+        .iter()
+        .take(LISTED_FAULTY_REGIONS)
+        .map(|f| {
+            let counts: Vec<String> = [(f.flipped, "flipped"), (f.degenerate, "degenerate")]
+                .iter()
+                .filter(|(n, _)| *n > 0)
+                .map(|(n, what)| format!("{n} {what}"))
+                .collect();
+            format!("{} ({})", f.region, counts.join(" and "))
+        })
+        .collect();
+    let more = match faulty.len().saturating_sub(LISTED_FAULTY_REGIONS) {
+        0 => String::new(),
+        n => format!(" and {n} more"),
+    };
+    format!("; by region: {}{more}", listed.join(", "))
 }
 
 /// The report in words, on stderr.

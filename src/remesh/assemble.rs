@@ -2229,6 +2229,42 @@ pub fn check_mesh(rep: &Representation, mesh: &Mesh, face_regions: &[u32]) -> Me
     }
 }
 
+/// One region's faulty triangles in an assembled mesh ([`triangle_faults_by_region`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RegionTriangleFaults {
+    /// The region.
+    pub region: u32,
+    /// Its triangles whose normal disagrees with its ellipsoid's at their centroid.
+    pub flipped: usize,
+    /// Its triangles of (near) zero area.
+    pub degenerate: usize,
+}
+
+/// Where [`check_mesh`]'s flipped and degenerate triangles are: each region that has any,
+/// with its counts, in increasing order of region. The counts add up to the check's. For
+/// a user, or a test, to see which regions keep a decoded mesh from being clean (the
+/// encoder's check blames them the same way, [`problem_regions`]).
+pub fn triangle_faults_by_region(
+    rep: &Representation,
+    mesh: &Mesh,
+    face_regions: &[u32],
+) -> Vec<RegionTriangleFaults> {
+    let mut by_region: std::collections::BTreeMap<u32, RegionTriangleFaults> =
+        std::collections::BTreeMap::new();
+    for (region, fault) in face_faults(rep, mesh, face_regions) {
+        let counts = by_region.entry(region).or_insert(RegionTriangleFaults {
+            region,
+            flipped: 0,
+            degenerate: 0,
+        });
+        match fault {
+            FaceFault::Degenerate => counts.degenerate += 1,
+            FaceFault::Flipped => counts.flipped += 1,
+        }
+    }
+    by_region.into_values().collect()
+}
+
 /// The bounding-box diagonal the tolerance is a fraction of: the box of the boundary points
 /// and of the whole-ellipsoid regions.
 fn reference_diagonal(rep: &Representation) -> f64 {
@@ -2343,7 +2379,7 @@ enum FaceFault {
 }
 
 /// The faulty triangles of an assembled mesh, with their regions: what [`check_mesh`]
-/// counts and [`problem_regions`] blames.
+/// counts, [`triangle_faults_by_region`] counts by region and [`problem_regions`] blames.
 fn face_faults<'a>(
     rep: &'a Representation,
     mesh: &'a Mesh,
@@ -2509,6 +2545,57 @@ mod tests {
             omitted.faults(),
             "0 flipped and 0 degenerate triangles, 2 regions left out, not closed"
         );
+    }
+
+    #[test]
+    fn triangle_faults_are_counted_by_region() {
+        // Two unit spheres far apart, whole regions.
+        let shift = DVec3::new(10.0, 0.0, 0.0);
+        let rep = Representation {
+            ellipsoids: vec![
+                Ellipsoid::sphere(DVec3::ZERO, 1.0),
+                Ellipsoid::sphere(shift, 1.0),
+            ],
+            cycles: vec![Vec::new(), Vec::new()],
+            ..Representation::default()
+        };
+        // Near each sphere's top: a triangle counter-clockwise seen from above (outward) on
+        // the first, the same turned over on the second, and one of zero area there.
+        let cap = [
+            DVec3::new(0.1, 0.0, 0.99),
+            DVec3::new(-0.05, 0.087, 0.99),
+            DVec3::new(-0.05, -0.087, 0.99),
+        ];
+        let mut positions = cap.to_vec();
+        positions.extend(cap.iter().map(|&p| p + shift));
+        positions.extend([0.0, 0.1, 0.2].map(|x| shift + DVec3::new(x, 0.0, 1.0)));
+        let faces = vec![[0, 1, 2], [3, 5, 4], [6, 7, 8]];
+        let regions = [0, 1, 1];
+        let mesh = Mesh::new(positions.clone(), faces.clone()).unwrap();
+        let faults = triangle_faults_by_region(&rep, &mesh, &regions);
+        assert_eq!(
+            faults,
+            [RegionTriangleFaults {
+                region: 1,
+                flipped: 1,
+                degenerate: 1
+            }]
+        );
+        let check = check_mesh(&rep, &mesh, &regions);
+        assert_eq!((check.flipped, check.degenerate), (1, 1));
+        // Turned over, the first region's triangle is counted too, first.
+        let turned = Mesh::new(positions, vec![[0, 2, 1], faces[1], faces[2]]).unwrap();
+        let faults = triangle_faults_by_region(&rep, &turned, &regions);
+        assert_eq!(
+            faults
+                .iter()
+                .map(|f| (f.region, f.flipped, f.degenerate))
+                .collect::<Vec<_>>(),
+            [(0, 1, 0), (1, 1, 1)]
+        );
+        // A clean mesh has none.
+        let clean = Mesh::new(cap.to_vec(), vec![[0, 1, 2]]).unwrap();
+        assert!(triangle_faults_by_region(&rep, &clean, &[0]).is_empty());
     }
 
     #[test]
