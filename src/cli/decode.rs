@@ -13,7 +13,9 @@ use ellip::export::{write_mesh, MeshData};
 use ellip::format::{decode, Limits};
 use ellip::import::MeshFormat;
 use ellip::preview::palette::palette;
-use ellip::remesh::assemble::{triangle_faults_by_region, RegionTriangleFaults, BUDGET_MET};
+use ellip::remesh::assemble::{
+    describe_triangle_faults, triangle_faults_by_region, RegionTriangleFaults, BUDGET_MET,
+};
 use ellip::remesh::{remesh, RemeshOptions, Remeshed, Scheme};
 use ellip::representation::Representation;
 use glam::DVec3;
@@ -326,29 +328,16 @@ pub fn remesh_and_write(
 const LISTED_FAULTY_REGIONS: usize = 10;
 
 /// Where the flipped and degenerate triangles are, for the warning about a mesh that is not
-/// clean: "; by region: 10 (1 flipped), 24 (2 flipped and 1 degenerate)", the first
-/// [`LISTED_FAULTY_REGIONS`] and how many more; empty when there are none.
+/// clean: "; by region: 10 (1 flipped), 24 (2 flipped and 1 degenerate)"; empty when there
+/// are none.
 fn faults_by_region(faulty: &[RegionTriangleFaults]) -> String {
     if faulty.is_empty() {
         return String::new();
     }
-    let listed: Vec<String> = faulty
-        .iter()
-        .take(LISTED_FAULTY_REGIONS)
-        .map(|f| {
-            let counts: Vec<String> = [(f.flipped, "flipped"), (f.degenerate, "degenerate")]
-                .iter()
-                .filter(|(n, _)| *n > 0)
-                .map(|(n, what)| format!("{n} {what}"))
-                .collect();
-            format!("{} ({})", f.region, counts.join(" and "))
-        })
-        .collect();
-    let more = match faulty.len().saturating_sub(LISTED_FAULTY_REGIONS) {
-        0 => String::new(),
-        n => format!(" and {n} more"),
-    };
-    format!("; by region: {}{more}", listed.join(", "))
+    format!(
+        "; by region: {}",
+        describe_triangle_faults(faulty, LISTED_FAULTY_REGIONS)
+    )
 }
 
 /// The report in words, on stderr.

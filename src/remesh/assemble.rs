@@ -2265,6 +2265,27 @@ pub fn triangle_faults_by_region(
     by_region.into_values().collect()
 }
 
+/// `faults` ([`triangle_faults_by_region`]) in words, the first `most` regions and how many
+/// more: "10 (1 flipped), 24 (2 flipped and 1 degenerate) and 3 more".
+pub fn describe_triangle_faults(faults: &[RegionTriangleFaults], most: usize) -> String {
+    let listed: Vec<String> = faults
+        .iter()
+        .take(most)
+        .map(|f| {
+            let counts: Vec<String> = [(f.flipped, "flipped"), (f.degenerate, "degenerate")]
+                .iter()
+                .filter(|(n, _)| *n > 0)
+                .map(|(n, what)| format!("{n} {what}"))
+                .collect();
+            format!("{} ({})", f.region, counts.join(" and "))
+        })
+        .collect();
+    match faults.len().saturating_sub(most) {
+        0 => listed.join(", "),
+        more => format!("{} and {more} more", listed.join(", ")),
+    }
+}
+
 /// The bounding-box diagonal the tolerance is a fraction of: the box of the boundary points
 /// and of the whole-ellipsoid regions.
 fn reference_diagonal(rep: &Representation) -> f64 {
@@ -2593,9 +2614,18 @@ mod tests {
                 .collect::<Vec<_>>(),
             [(0, 1, 0), (1, 1, 1)]
         );
+        assert_eq!(
+            describe_triangle_faults(&faults, 10),
+            "0 (1 flipped), 1 (1 flipped and 1 degenerate)"
+        );
+        assert_eq!(
+            describe_triangle_faults(&faults, 1),
+            "0 (1 flipped) and 1 more"
+        );
         // A clean mesh has none.
         let clean = Mesh::new(cap.to_vec(), vec![[0, 1, 2]]).unwrap();
         assert!(triangle_faults_by_region(&rep, &clean, &[0]).is_empty());
+        assert_eq!(describe_triangle_faults(&[], 10), "");
     }
 
     #[test]
