@@ -28,8 +28,8 @@ use crate::remesh::{ChartMemo, Remeshed};
 use crate::representation::{InvalidRepresentation, Metadata, Representation};
 use crate::segment::proxy::speck_faces;
 use crate::segment::{
-    dissolve_regions, segment_with, split_regions, Cut, EllipsoidMetric, Progress, RegionCount,
-    SegmentError, SegmentOptions, Segmentation, Split,
+    dissolve_regions, segment_with, split_regions, Cut, EllipsoidMetric, Exec, Progress,
+    RegionCount, SegmentError, SegmentOptions, Segmentation, Split,
 };
 use glam::DVec3;
 use rayon::prelude::*;
@@ -420,7 +420,7 @@ fn encode_checked(
     // the fewest regions to blame, then the earliest.
     // A source that is not manifold gives a decoded mesh that is not either (see
     // MeshCheck::is_clean_from): no round could mend that.
-    let source = Source::new(mesh);
+    let source = Source::with_threads(mesh, settings.segment.threads)?;
     let max_added = MAX_SPLIT_REGIONS.max(requested);
     let mut best: Option<(Score, Encoded)> = None;
     // The regions the best file's check blamed.
@@ -601,7 +601,7 @@ fn store_blamed_faithfully(
     settings: &EncodeSettings,
     tried: Vec<Checked>,
 ) -> Result<Checked, EncodeMeshError> {
-    let source = Source::new(mesh);
+    let source = Source::with_threads(mesh, settings.segment.threads)?;
     let mut best: Option<Checked> = None;
     for checked in tried {
         let checked = store_faithfully(mesh, settings, &source, checked)?;
@@ -797,6 +797,8 @@ struct Source<'a> {
     /// The charts of every decode of this source's files ([`ChartMemo`]): a round of
     /// mending changes a few regions, and the check meets the others' charts again.
     charts: ChartMemo,
+    /// Where the check's parallel steps run ([`Source::with_threads`]).
+    exec: Exec,
 }
 
 impl Source<'_> {
@@ -820,7 +822,17 @@ impl Source<'_> {
                 })
                 .collect(),
             charts: ChartMemo::default(),
+            exec: Exec::Global,
         }
+    }
+
+    /// [`Source::new`], its parallel steps run by `threads` workers (`None`: all cores), as
+    /// [`SegmentOptions::threads`] asks of the whole encoder.
+    fn with_threads(mesh: &Mesh, threads: Option<usize>) -> Result<Source<'_>, EncodeMeshError> {
+        Ok(Source {
+            exec: Exec::new(threads)?,
+            ..Source::new(mesh)
+        })
     }
 
     /// The regions without a boundary (a closed piece of the mesh covered by one region,
@@ -946,19 +958,20 @@ impl Source<'_> {
         // where that is more than the limit farther (measured exactly only there: most
         // faces are found within it at the first leaf); then each decoded face's to the
         // source likewise. In parallel, reduced in order.
-        let fits: Vec<Option<(f64, Option<f64>)>> = self
-            .centroids
-            .par_iter()
-            .zip(labels)
-            .map(|(&c, &region)| {
-                let fit = c.distance(ellipsoids.get(region as usize)?.closest_point(c));
-                let off = (!decoded_faces.is_within(c, fit + limit))
-                    .then(|| decoded_faces.find_closest(c))
-                    .flatten()
-                    .map(|hit| hit.distance_squared.sqrt());
-                Some((fit, off))
-            })
-            .collect();
+        let fits: Vec<Option<(f64, Option<f64>)>> = self.exec.install(|| {
+            self.centroids
+                .par_iter()
+                .zip(labels)
+                .map(|(&c, &region)| {
+                    let fit = c.distance(ellipsoids.get(region as usize)?.closest_point(c));
+                    let off = (!decoded_faces.is_within(c, fit + limit))
+                        .then(|| decoded_faces.find_closest(c))
+                        .flatten()
+                        .map(|hit| hit.distance_squared.sqrt());
+                    Some((fit, off))
+                })
+                .collect()
+        });
         // Per region, the farthest of its faces from its ellipsoid, and their RMS distance
         // from it over their area.
         let mut missed = vec![0.0f64; ellipsoids.len()];
@@ -993,18 +1006,20 @@ impl Source<'_> {
                 .map_or(f64::INFINITY, |hit| hit.distance_squared.sqrt())
         };
         // (distance or its bound, whether exact) per decoded face.
-        let made_up: Vec<(f64, bool)> = face_regions
-            .par_iter()
-            .enumerate()
-            .map(|(f, &region)| {
-                let near = bound(region);
-                if self.faces.is_within(decoded.face_centroid(f), near) {
-                    (near, false)
-                } else {
-                    (distance_to_source(f), true)
-                }
-            })
-            .collect();
+        let made_up: Vec<(f64, bool)> = self.exec.install(|| {
+            face_regions
+                .par_iter()
+                .enumerate()
+                .map(|(f, &region)| {
+                    let near = bound(region);
+                    if self.faces.is_within(decoded.face_centroid(f), near) {
+                        (near, false)
+                    } else {
+                        (distance_to_source(f), true)
+                    }
+                })
+                .collect()
+        });
         // Per region, its decoded area and (at most) the squares of its faces' distances.
         let mut decoded_areas = vec![0.0f64; ellipsoids.len()];
         let mut decoded_squares = vec![0.0f64; ellipsoids.len()];
@@ -1037,18 +1052,20 @@ impl Source<'_> {
             if rms_excess(r, decoded_squares[r]) <= rms_limit {
                 continue;
             }
-            let squares: f64 = face_regions
-                .par_iter()
-                .enumerate()
-                .filter(|&(_, &region)| region as usize == r)
-                .map(|(f, _)| {
-                    let d = match made_up[f] {
-                        (d, true) => d,
-                        (_, false) => distance_to_source(f),
-                    };
-                    d * d * decoded.face_area(f)
-                })
-                .sum();
+            let squares: f64 = self.exec.install(|| {
+                face_regions
+                    .par_iter()
+                    .enumerate()
+                    .filter(|&(_, &region)| region as usize == r)
+                    .map(|(f, _)| {
+                        let d = match made_up[f] {
+                            (d, true) => d,
+                            (_, false) => distance_to_source(f),
+                        };
+                        d * d * decoded.face_area(f)
+                    })
+                    .sum()
+            });
             let excess = rms_excess(r, squares);
             if excess > rms_limit {
                 in_bulk[r] = excess;
@@ -1076,23 +1093,24 @@ impl Source<'_> {
                 *l &= a >= least;
             }
             let lost_limit = MAX_LOST * self.diagonal;
-            let missing: Vec<Option<f64>> = self
-                .centroids
-                .par_iter()
-                .zip(labels)
-                .map(|(&c, &region)| {
-                    if !lost.get(region as usize).copied().unwrap_or(false)
-                        || decoded_faces.is_within(c, lost_limit)
-                    {
-                        return None;
-                    }
-                    Some(
-                        decoded_faces
-                            .find_closest(c)
-                            .map_or(f64::INFINITY, |hit| hit.distance_squared.sqrt()),
-                    )
-                })
-                .collect();
+            let missing: Vec<Option<f64>> = self.exec.install(|| {
+                self.centroids
+                    .par_iter()
+                    .zip(labels)
+                    .map(|(&c, &region)| {
+                        if !lost.get(region as usize).copied().unwrap_or(false)
+                            || decoded_faces.is_within(c, lost_limit)
+                        {
+                            return None;
+                        }
+                        Some(
+                            decoded_faces
+                                .find_closest(c)
+                                .map_or(f64::INFINITY, |hit| hit.distance_squared.sqrt()),
+                        )
+                    })
+                    .collect()
+            });
             for (&region, distance) in labels.iter().zip(missing) {
                 if let (Some(d), Some(g)) = (distance, gone.get_mut(region as usize)) {
                     *g = g.max(d);
@@ -1428,10 +1446,10 @@ fn closest_treatment(
         ..CompareOptions::default()
     };
     let rms = |m: &Mesh| -> Result<f64, EncodeMeshError> {
-        Ok(compare_meshes(source.mesh, m, &compare)?
-            .symmetric
-            .distances
-            .rms)
+        let compared = source
+            .exec
+            .install(|| compare_meshes(source.mesh, m, &compare))?;
+        Ok(compared.symmetric.distances.rms)
     };
     let first = rms(decoded)?;
     let mut best = (first, used);
@@ -1801,15 +1819,22 @@ pub struct Measured {
     pub diagonal: f64,
 }
 
-/// Decodes `bytes`, remeshes them and compares the result with `mesh`.
-pub fn measure_encoding(mesh: &Mesh, bytes: &[u8]) -> Result<Measured, EncodeMeshError> {
+/// Decodes `bytes`, remeshes them and compares the result with `mesh`, the comparison's
+/// parallel steps run by `threads` workers (`None`: all cores; [`SegmentOptions::threads`]).
+pub fn measure_encoding(
+    mesh: &Mesh,
+    bytes: &[u8],
+    threads: Option<usize>,
+) -> Result<Measured, EncodeMeshError> {
     let representation = format::decode(bytes, &format::Limits::default())?;
     let decoded = crate::remesh::remesh(&representation, &crate::remesh::RemeshOptions::default())?;
-    let c = crate::compare::compare_meshes(
-        mesh,
-        &decoded.mesh,
-        &crate::compare::CompareOptions::default(),
-    )?;
+    let c = Exec::new(threads)?.install(|| {
+        crate::compare::compare_meshes(
+            mesh,
+            &decoded.mesh,
+            &crate::compare::CompareOptions::default(),
+        )
+    })?;
     Ok(Measured {
         rms: c.symmetric.distances.rms,
         hausdorff: c.symmetric.distances.hausdorff,
@@ -2000,7 +2025,7 @@ pub fn encode_to_target(
             Some(w) if w.score < plain.score => w,
             _ => &plain,
         };
-        let measured = measure_encoding(mesh, &kept.encoded.bytes)?;
+        let measured = measure_encoding(mesh, &kept.encoded.bytes, settings.segment.threads)?;
         let bytes = store_measurement(&kept.encoded, &measured)?;
         let p = Probe {
             regions: k,
@@ -2160,6 +2185,22 @@ pub fn encode_to_target(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `threads` bounds the decoder check's parallel steps as it bounds the segmentation's:
+    /// they run in a pool of that many workers, not in rayon's global pool of every core.
+    #[test]
+    fn the_check_runs_on_as_many_threads_as_asked() {
+        let mesh = crate::synth::shapes::icosphere(1.0, 1);
+        for threads in [1, 3] {
+            let source = Source::with_threads(&mesh, Some(threads)).unwrap();
+            assert_eq!(source.exec.install(rayon::current_num_threads), threads);
+        }
+        let all = Source::with_threads(&mesh, None).unwrap();
+        assert_eq!(
+            all.exec.install(rayon::current_num_threads),
+            rayon::current_num_threads()
+        );
+    }
 
     /// The last resort of the decoder check ([`store_blamed_faithfully`]): teddy at K = 12,
     /// with no round of mending allowed, is written with its boundaries smoothed, and that

@@ -221,7 +221,7 @@ pub fn run(args: &EncodeArgs) -> Result<(), CliError> {
             let encoded = encode_mesh(mesh, &settings, &mut |p| show_progress(&bar, &p))?;
             bar.finish_and_clear();
             if args.report {
-                let measured = measure_encoding(mesh, &encoded.bytes)?;
+                let measured = measure_encoding(mesh, &encoded.bytes, settings.segment.threads)?;
                 let bytes = store_measurement(&encoded, &measured)?;
                 (encoded, bytes, Some(measured), Vec::new())
             } else {

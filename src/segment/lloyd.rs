@@ -60,7 +60,8 @@
 //! threads.
 
 use super::{
-    Cut, Progress, ProxyMetric, RegionCount, SegmentError, SegmentOptions, Segmentation, Split,
+    Cut, Exec, Progress, ProxyMetric, RegionCount, SegmentError, SegmentOptions, Segmentation,
+    Split,
 };
 use crate::ellipsoid::fit::{eigen_symmetric, scatter};
 use crate::mesh::Mesh;
@@ -91,21 +92,6 @@ const NONE: u32 = u32::MAX;
 
 /// Two adjacent regions, the lower index first.
 type Pair = (u32, u32);
-
-/// Where the parallel steps run: rayon's global pool, or a local one of a fixed size.
-enum Exec {
-    Global,
-    Local(rayon::ThreadPool),
-}
-
-impl Exec {
-    fn install<R: Send>(&self, op: impl FnOnce() -> R + Send) -> R {
-        match self {
-            Exec::Global => op(),
-            Exec::Local(pool) => pool.install(op),
-        }
-    }
-}
 
 /// A labelling with its proxies and their errors.
 #[derive(Debug, Clone)]
@@ -373,18 +359,7 @@ impl<'a, M: ProxyMetric> Lloyd<'a, M> {
         target: Target,
         progress: &'a mut dyn FnMut(Progress),
     ) -> Result<Self, SegmentError> {
-        let exec = match options.threads {
-            None => Exec::Global,
-            Some(n) => Exec::Local(
-                rayon::ThreadPoolBuilder::new()
-                    .num_threads(n)
-                    .build()
-                    .map_err(|e| SegmentError::InvalidOption {
-                        what: "threads",
-                        value: format!("{n} ({e})"),
-                    })?,
-            ),
-        };
+        let exec = Exec::new(options.threads)?;
         let mut lloyd = Lloyd {
             mesh,
             metric,

@@ -75,7 +75,9 @@ pub struct SegmentOptions {
     pub allow_negative: bool,
     /// Weight each face's error by its area (default false: the paper's plain sum).
     pub area_weighting: bool,
-    /// Worker threads; `None` uses all cores (default). The result does not depend on it.
+    /// Worker threads; `None` uses all cores (default). The encoder runs its decoder check
+    /// (and `--report`'s measurement) on as many ([`crate::encode::encode_mesh`]). The
+    /// result does not depend on it.
     pub threads: Option<usize>,
     /// Most regions a tolerance may ask for (default 256).
     pub max_regions: usize,
@@ -228,6 +230,40 @@ pub struct Cut {
     pub point: glam::DVec3,
     /// Its unit normal.
     pub normal: glam::DVec3,
+}
+
+/// Where parallel steps run: rayon's global pool (all cores), or a pool of its own of
+/// [`SegmentOptions::threads`] workers, for the segmentation and for the encoder's check of
+/// what it writes alike.
+pub(crate) enum Exec {
+    Global,
+    Local(rayon::ThreadPool),
+}
+
+impl Exec {
+    /// The global pool for `None`, else a pool of `threads` workers.
+    pub(crate) fn new(threads: Option<usize>) -> Result<Exec, SegmentError> {
+        Ok(match threads {
+            None => Exec::Global,
+            Some(n) => Exec::Local(
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(n)
+                    .build()
+                    .map_err(|e| SegmentError::InvalidOption {
+                        what: "threads",
+                        value: format!("{n} ({e})"),
+                    })?,
+            ),
+        })
+    }
+
+    /// Runs `op` with its parallel iterators in this pool.
+    pub(crate) fn install<R: Send>(&self, op: impl FnOnce() -> R + Send) -> R {
+        match self {
+            Exec::Global => op(),
+            Exec::Local(pool) => pool.install(op),
+        }
+    }
 }
 
 /// A region to split ([`split_regions`]), and where, if known.
