@@ -450,6 +450,7 @@ fn encode_checked(
         }
         let score = verdict.score();
         let rank = score.0;
+        let seams = verdict.closed_on_themselves();
         let (mut blamed, problem) = verdict.blamed_and_problem();
         verification.problem = problem;
         let done = verification.problem.is_none();
@@ -472,7 +473,14 @@ fn encode_checked(
         // boundary far enough from the mesh's to fold it, or to close the gap between two of
         // its loops. Its boundaries are first stored at the mesh's points (simplified), then
         // as the mesh has them.
-        if rank == DOES_NOT_DECODE && raise_fidelity(&mut fidelity, blamed.iter().map(|s| s.region))
+        if rank == DOES_NOT_DECODE
+            && raise_fidelity(
+                &mut fidelity,
+                blamed
+                    .iter()
+                    .map(|s| s.region)
+                    .filter(|r| !seams.contains(r)),
+            )
         {
             continue;
         }
@@ -723,7 +731,9 @@ enum Verdict {
     Clean,
     Far(u32, Vec<Split>, String),
     Dirty(Faults, Vec<Split>, String),
-    Fails(Vec<Split>, String),
+    /// With the regions that close on themselves
+    /// ([`crate::remesh::assemble::RegionFault::seam`]), which only a cut mends.
+    Fails(Vec<Split>, String, Vec<u32>),
 }
 
 /// How a verdict ranks, lower better: clean, then decodes with faults, then clean with a
@@ -738,7 +748,16 @@ impl Verdict {
             Verdict::Clean => (Vec::new(), None),
             Verdict::Far(_, regions, problem)
             | Verdict::Dirty(_, regions, problem)
-            | Verdict::Fails(regions, problem) => (regions, Some(problem)),
+            | Verdict::Fails(regions, problem, _) => (regions, Some(problem)),
+        }
+    }
+
+    /// The regions that close on themselves, which storing their boundaries more faithfully
+    /// cannot mend ([`crate::remesh::assemble::RegionFault::seam`]).
+    fn closed_on_themselves(&self) -> Vec<u32> {
+        match self {
+            Verdict::Fails(_, _, seams) => seams.clone(),
+            _ => Vec::new(),
         }
     }
 
@@ -759,7 +778,7 @@ impl Verdict {
                 let rank = if faults.off { DIRTY_AND_FAR } else { DIRTY };
                 (rank, *faults, blamed.len())
             }
-            Verdict::Fails(blamed, _) => (DOES_NOT_DECODE, Faults::default(), blamed.len()),
+            Verdict::Fails(blamed, _, _) => (DOES_NOT_DECODE, Faults::default(), blamed.len()),
         }
     }
 }
@@ -1218,24 +1237,42 @@ fn verify(
         // shows one. One region a round: splitting every failing region at once was measured
         // worse (dino at K = 12 took 26 regions instead of 15).
         // Blamed too: every whole region far beyond its piece (`Source::far_whole_regions`),
-        // which decoders leaving out the failing region would mesh.
+        // which decoders leaving out the failing region would mesh. But where some regions
+        // close on themselves (`RegionFault::seam`), those are blamed instead of the first:
+        // only a cut mends them, and each needs one. assimp's `regr01` fails on such a
+        // region (a closed frame) in its first 16 rounds, blamed first in its 13th: chart
+        // faults of lower regions came first and were mended in between.
         Err(RemeshError::Region { region, what }) => {
-            let split = region_faults(&representation, &options, &source.charts)?
-                .first()
-                .map(|f| Split {
-                    region: f.region,
-                    cut: f.crossing.and_then(cut_between),
-                })
-                .unwrap_or(Split { region, cut: None });
+            let faults = region_faults(&representation, &options, &source.charts)?;
+            let seams: Vec<u32> = faults.iter().filter(|f| f.seam).map(|f| f.region).collect();
+            let splits: Vec<Split> = if seams.is_empty() {
+                let split = faults
+                    .first()
+                    .map(|f| Split {
+                        region: f.region,
+                        cut: f.crossing.and_then(cut_between),
+                    })
+                    .unwrap_or(Split { region, cut: None });
+                vec![split]
+            } else {
+                seams
+                    .iter()
+                    .map(|&region| Split { region, cut: None })
+                    .collect()
+            };
             let mut blamed: Vec<Split> = source
                 .far_whole_regions(&representation, labels)
                 .into_iter()
-                .filter(|&(r, _)| r != split.region)
+                .filter(|&(r, _)| splits.iter().all(|s| s.region != r))
                 .map(|(region, _)| Split { region, cut: None })
                 .collect();
-            blamed.push(split);
+            blamed.extend(splits);
             return Ok((
-                Verdict::Fails(blamed, format!("does not decode: region {region}: {what}")),
+                Verdict::Fails(
+                    blamed,
+                    format!("does not decode: region {region}: {what}"),
+                    seams,
+                ),
                 None,
             ));
         }
@@ -2202,6 +2239,50 @@ mod tests {
         );
     }
 
+    /// A region that closes on itself (every boundary edge a seam: a torus cut along a
+    /// meridian by fins on its edges, one region for the tube, as in `tests/remesh.rs`) is
+    /// blamed when the file does not decode, as one that storing its boundary more
+    /// faithfully (mending's first step for such a file) cannot mend: mending cuts it in its
+    /// first round. The cut torus took 13 rounds to a clean file before, 11 now.
+    #[test]
+    fn a_region_that_closes_on_itself_is_blamed_to_be_cut() {
+        let (major, meridian) = (2.0, 12u32);
+        let torus = crate::synth::shapes::torus(major, 0.6, 24, meridian);
+        let mut positions = torus.positions().to_vec();
+        let mut faces = torus.faces().to_vec();
+        for j in 0..meridian {
+            let (a, b) = (j, (j + 1) % meridian);
+            let middle = 0.5 * (positions[a as usize] + positions[b as usize]);
+            let out = (middle - DVec3::new(major, 0.0, 0.0)).normalize();
+            positions.push(middle + 0.3 * out);
+            faces.push([a, b, positions.len() as u32 - 1]);
+        }
+        let mesh = Mesh::new(positions, faces).unwrap();
+        let pieces = mesh.topology().component_count();
+        let settings = EncodeSettings {
+            segment: SegmentOptions {
+                regions: RegionCount::Fixed(pieces),
+                ..SegmentOptions::default()
+            },
+            ..EncodeSettings::default()
+        };
+        let round_0 = encode_checked(&mesh, &settings, 0, Fidelity::Smoothed, &mut |_| {}).unwrap();
+        let labels = &round_0.encoded.segmentation.labels;
+        let (verdict, _) = verify(&round_0.encoded.bytes, &Source::new(&mesh), labels).unwrap();
+        // The tube: the region with the most faces.
+        let mut counts = vec![0usize; pieces];
+        for &r in labels {
+            counts[r as usize] += 1;
+        }
+        let tube = (0..pieces as u32)
+            .max_by_key(|&r| counts[r as usize])
+            .unwrap();
+        assert_eq!(verdict.closed_on_themselves(), [tube]);
+        let (blamed, problem) = verdict.blamed_and_problem();
+        assert!(blamed.iter().any(|s| s.region == tube), "{blamed:?}");
+        assert!(problem.is_some_and(|p| p.contains("seam")));
+    }
+
     /// The last resort of the decoder check ([`store_blamed_faithfully`]): teddy at K = 12,
     /// with no round of mending allowed, is written with its boundaries smoothed, and that
     /// file decodes with a flipped triangle; with the blamed region's boundaries at the
@@ -2683,8 +2764,8 @@ mod tests {
             Verdict::Far(3000, blamed(1), String::new()).score(),
             faulty(true, false, 1, 1),
             faulty(true, true, 0, 1),
-            Verdict::Fails(blamed(1), String::new()).score(),
-            Verdict::Fails(blamed(2), String::new()).score(),
+            Verdict::Fails(blamed(1), String::new(), Vec::new()).score(),
+            Verdict::Fails(blamed(2), String::new(), Vec::new()).score(),
         ];
         assert!(ranked.windows(2).all(|w| w[0] < w[1]), "{ranked:?}");
     }

@@ -1961,7 +1961,8 @@ fn a_region_on_both_sides_of_a_non_manifold_edge_is_meshed_across_it() {
 /// region's boundary is a seam. Such a region closes on itself; it is left out of the mesh
 /// and counted so (`RemeshError::Region`, the way a region whose loops cross is), not
 /// skipped as if it enclosed nothing: with every seam dropped it had no loop left, and it
-/// was missing from the mesh without a word.
+/// was missing from the mesh without a word. `region_faults` says why
+/// (`RegionFault::seam`), for the encoder's check to cut it.
 #[test]
 fn a_region_whose_every_boundary_edge_is_a_seam_is_left_out_and_said_so() {
     let (around, meridian) = (24u32, 12u32);
@@ -2010,4 +2011,12 @@ fn a_region_whose_every_boundary_edge_is_a_seam_is_left_out_and_said_so() {
         "{:?}",
         out.omitted
     );
+    let faults = ellip::remesh::assemble::region_faults(
+        &rep,
+        &RemeshOptions::default(),
+        &ellip::remesh::ChartMemo::default(),
+    )
+    .unwrap();
+    let seams: Vec<u32> = faults.iter().filter(|f| f.seam).map(|f| f.region).collect();
+    assert_eq!(seams, [torus_region as u32], "{faults:?}");
 }

@@ -219,6 +219,10 @@ pub struct RegionFault {
     /// When its loops cross in its chart: two loop edges that cross (their end points in
     /// space), where the boundary folds over itself.
     pub crossing: Option<Crossing>,
+    /// Whether every boundary edge of the region is a seam: it lies on both sides of all its
+    /// boundary and closes on itself (a ring of faces made one region), which no chart and
+    /// no boundary stored more faithfully mends, only cutting the region.
+    pub seam: bool,
 }
 
 /// The regions whose chart or boundary triangulation fails in the decoder's first attempt
@@ -861,11 +865,19 @@ impl Plan<'_> {
                 .filter(|l| l.len() >= 3)
                 .collect();
             if had_loops && loops.is_empty() {
-                let refused = Err(RemeshError::Region {
-                    region,
-                    what: "every boundary edge is a seam (the region closes on itself)",
-                });
-                noted::<()>(refused, faults.as_deref_mut())?;
+                match faults.as_deref_mut() {
+                    Some(f) => f.push(RegionFault {
+                        region,
+                        crossing: None,
+                        seam: true,
+                    }),
+                    None => {
+                        return Err(RemeshError::Region {
+                            region,
+                            what: "every boundary edge is a seam (the region closes on itself)",
+                        })
+                    }
+                }
                 continue;
             }
             if loops.is_empty() {
@@ -941,6 +953,7 @@ fn noted<T>(
             f.push(RegionFault {
                 region,
                 crossing: None,
+                seam: false,
             });
             Ok(None)
         }
@@ -1608,6 +1621,7 @@ fn settle_charts(
                 Some(f) => f.push(RegionFault {
                     region: piece.region,
                     crossing: boundary_crossing(&piece.input()),
+                    seam: false,
                 }),
                 None => return Err(error),
             },
