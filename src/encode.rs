@@ -1219,7 +1219,9 @@ fn verify(
     source: &Source,
     labels: &[u32],
 ) -> Result<(Verdict, Option<Treatment>), EncodeMeshError> {
-    use crate::remesh::assemble::{problem_regions, region_faults};
+    use crate::remesh::assemble::{
+        problem_regions, region_faults, triangle_faults_by_region, triangle_faults_note,
+    };
     use crate::remesh::{remesh_with_charts, RemeshError, RemeshOptions};
     let source_manifold = source.manifold;
     let representation = format::decode(bytes, &format::Limits::default())?;
@@ -1324,10 +1326,18 @@ fn verify(
                         regions.push(region);
                     }
                 }
+                // Where the flipped and degenerate triangles are, as `ellip decode` says it.
+                let by_region = if c.flipped + c.degenerate > 0 {
+                    let counted =
+                        triangle_faults_by_region(&representation, &out.mesh, &out.face_regions);
+                    triangle_faults_note(&counted)
+                } else {
+                    String::new()
+                };
                 Verdict::Dirty(
                     faults,
                     blame(regions),
-                    format!("decodes with {}", c.faults()),
+                    format!("decodes with {}{by_region}", c.faults()),
                 )
             }
         };
@@ -2311,6 +2321,27 @@ mod tests {
         assert_eq!(round_0.score.0, DIRTY, "round 0: {:?}", round_0.score);
         assert!(round_0.score.1.bad_triangles > 0);
         assert!(!round_0.blamed.is_empty());
+        // Its problem says where the faulty triangles are, as `ellip decode` does.
+        let problem = round_0
+            .encoded
+            .verification
+            .problem
+            .clone()
+            .unwrap_or_default();
+        let rep = format::decode(&round_0.encoded.bytes, &format::Limits::default()).unwrap();
+        let options = crate::remesh::RemeshOptions {
+            leave_out: false,
+            ..Default::default()
+        };
+        let out = crate::remesh::remesh(&rep, &options).unwrap();
+        let note = crate::remesh::assemble::triangle_faults_note(
+            &crate::remesh::assemble::triangle_faults_by_region(&rep, &out.mesh, &out.face_regions),
+        );
+        assert!(note.starts_with("; by region: "), "{note}");
+        assert_eq!(
+            problem,
+            format!("decodes with {}{note}", out.check.faults())
+        );
         let round_0_bytes = round_0.encoded.bytes.clone();
         let labels = round_0.encoded.segmentation.labels.clone();
         let kept = store_blamed_faithfully(&mesh, &settings, vec![round_0])

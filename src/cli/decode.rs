@@ -13,9 +13,7 @@ use ellip::export::{write_mesh, MeshData};
 use ellip::format::{decode, Limits};
 use ellip::import::MeshFormat;
 use ellip::preview::palette::palette;
-use ellip::remesh::assemble::{
-    describe_triangle_faults, triangle_faults_by_region, RegionTriangleFaults, BUDGET_MET,
-};
+use ellip::remesh::assemble::{triangle_faults_by_region, triangle_faults_note, BUDGET_MET};
 use ellip::remesh::{remesh, RemeshOptions, Remeshed, Scheme};
 use ellip::representation::Representation;
 use glam::DVec3;
@@ -258,7 +256,7 @@ pub fn remesh_and_write(
         eprintln!(
             "warning: the mesh is not clean: {}{}",
             check.faults(),
-            faults_by_region(&faulty)
+            triangle_faults_note(&faulty)
         );
     }
     let budget = options.budget(rep);
@@ -321,23 +319,6 @@ pub fn remesh_and_write(
         treatment: remeshed.treatment.map(|t| t.code()),
         seconds,
     })
-}
-
-/// Most regions the warning about flipped and degenerate triangles names (`--json` lists
-/// them all).
-const LISTED_FAULTY_REGIONS: usize = 10;
-
-/// Where the flipped and degenerate triangles are, for the warning about a mesh that is not
-/// clean: "; by region: 10 (1 flipped), 24 (2 flipped and 1 degenerate)"; empty when there
-/// are none.
-fn faults_by_region(faulty: &[RegionTriangleFaults]) -> String {
-    if faulty.is_empty() {
-        return String::new();
-    }
-    format!(
-        "; by region: {}",
-        describe_triangle_faults(faulty, LISTED_FAULTY_REGIONS)
-    )
 }
 
 /// The report in words, on stderr.

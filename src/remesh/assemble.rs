@@ -2300,6 +2300,23 @@ pub fn describe_triangle_faults(faults: &[RegionTriangleFaults], most: usize) ->
     }
 }
 
+/// Most regions [`triangle_faults_note`] names.
+pub const LISTED_FAULTY_REGIONS: usize = 10;
+
+/// Where a mesh's flipped and degenerate triangles are, to follow its check's faults in a
+/// warning: "; by region: 10 (1 flipped), 24 (2 flipped and 1 degenerate)", the first
+/// [`LISTED_FAULTY_REGIONS`] regions ([`describe_triangle_faults`]); empty when there are
+/// none. `ellip decode`'s warning and the encoder's check (its file's problem) say it so.
+pub fn triangle_faults_note(faults: &[RegionTriangleFaults]) -> String {
+    if faults.is_empty() {
+        return String::new();
+    }
+    format!(
+        "; by region: {}",
+        describe_triangle_faults(faults, LISTED_FAULTY_REGIONS)
+    )
+}
+
 /// The bounding-box diagonal the tolerance is a fraction of: the box of the boundary points
 /// and of the whole-ellipsoid regions.
 fn reference_diagonal(rep: &Representation) -> f64 {
