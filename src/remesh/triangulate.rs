@@ -42,7 +42,7 @@ use spade::{
     validate_coordinate, ConstrainedDelaunayTriangulation, HasPosition, Point2, Triangulation,
 };
 use std::cmp::Ordering;
-use std::collections::{BinaryHeap, HashMap, HashSet, VecDeque};
+use std::collections::{HashMap, HashSet, VecDeque};
 
 /// What one region's triangulation starts from.
 #[derive(Debug, Clone, Copy)]
@@ -696,15 +696,12 @@ fn plane_is_counter_clockwise(chart: &RegionChart, q: DVec2) -> Option<bool> {
     (s.is_finite() && s != 0.0).then_some(s > 0.0)
 }
 
-/// A face worth splitting: its error and corners, its handle and how many times that face
-/// had been remade when it was pushed (to check it still exists). Kept small (32 bytes): the
-/// heap holds about three entries per vertex.
+/// A face worth splitting: its error, its corners and its handle.
 #[derive(Debug, Clone, Copy)]
 struct Candidate {
     error: f64,
     corners: [FixedVertexHandle; 3],
     face: u32,
-    version: u32,
 }
 
 impl PartialEq for Candidate {
@@ -729,6 +726,118 @@ impl Ord for Candidate {
     }
 }
 
+/// The candidates, at most one per face: a binary max-heap in [`Candidate`]'s order, with
+/// each face's place in it, so that a face an insertion remakes has its candidate replaced
+/// or removed where it is ([`CandidateHeap::set`]). Every entry is a face as it is now: the
+/// worst candidate is the top, with no stale entries to pop first (a heap of entries pushed
+/// anew held about three per vertex, two of them stale by the time they came on top).
+#[derive(Debug, Clone, Default)]
+struct CandidateHeap {
+    entries: Vec<Candidate>,
+    /// Per face index, its entry's place in `entries` ([`NO_ENTRY`]: none).
+    places: Vec<u32>,
+}
+
+/// A face with no entry in the [`CandidateHeap`].
+const NO_ENTRY: u32 = u32::MAX;
+
+impl CandidateHeap {
+    fn peek(&self) -> Option<&Candidate> {
+        self.entries.first()
+    }
+
+    fn clear(&mut self) {
+        self.entries.clear();
+        self.places.clear();
+    }
+
+    /// Removes and returns the worst candidate.
+    fn pop(&mut self) -> Option<Candidate> {
+        let last = self.entries.len().checked_sub(1)?;
+        self.swap(0, last);
+        let top = self.entries.pop()?;
+        self.places[top.face as usize] = NO_ENTRY;
+        self.sift_down(0);
+        Some(top)
+    }
+
+    /// Makes `candidate` the entry of `face` (`None`: no entry), replacing its entry if it
+    /// has one.
+    fn set(&mut self, face: usize, candidate: Option<Candidate>) {
+        if face >= self.places.len() {
+            if candidate.is_none() {
+                return;
+            }
+            self.places.resize(face + 1, NO_ENTRY);
+        }
+        let place = self.places[face];
+        match (place, candidate) {
+            (NO_ENTRY, None) => {}
+            (NO_ENTRY, Some(c)) => {
+                self.places[face] = self.entries.len() as u32;
+                self.entries.push(c);
+                self.sift_up(self.entries.len() - 1);
+            }
+            (i, Some(c)) => {
+                let i = i as usize;
+                let worse = c > self.entries[i];
+                self.entries[i] = c;
+                if worse {
+                    self.sift_up(i);
+                } else {
+                    self.sift_down(i);
+                }
+            }
+            (i, None) => {
+                let (i, last) = (i as usize, self.entries.len() - 1);
+                self.swap(i, last);
+                self.entries.pop();
+                self.places[face] = NO_ENTRY;
+                if i < last {
+                    self.sift_up(i);
+                    self.sift_down(i);
+                }
+            }
+        }
+    }
+
+    fn swap(&mut self, i: usize, j: usize) {
+        self.entries.swap(i, j);
+        self.places[self.entries[i].face as usize] = i as u32;
+        self.places[self.entries[j].face as usize] = j as u32;
+    }
+
+    fn sift_up(&mut self, mut i: usize) {
+        while i > 0 {
+            let parent = (i - 1) / 2;
+            if self.entries[i] <= self.entries[parent] {
+                break;
+            }
+            self.swap(i, parent);
+            i = parent;
+        }
+    }
+
+    fn sift_down(&mut self, mut i: usize) {
+        let n = self.entries.len();
+        loop {
+            let (left, right) = (2 * i + 1, 2 * i + 2);
+            let mut worst = i;
+            if left < n && self.entries[left] > self.entries[worst] {
+                worst = left;
+            }
+            if right < n && self.entries[right] > self.entries[worst] {
+                worst = right;
+            }
+            if worst == i {
+                break;
+            }
+            self.swap(i, worst);
+            i = worst;
+        }
+    }
+}
+
 /// Iterative vertex addition (section 5.3), the default decoder: the region's boundary in its
 /// chart, then repeatedly the inside face whose flat centroid is farthest from the region's
 /// surface is split at a new vertex on the surface.
@@ -739,15 +848,14 @@ impl Ord for Candidate {
 /// against its ellipsoid counts as infinitely far. The new vertex is that plane centroid
 /// mapped to the surface ([`RegionSurface::point`]): the plane centroid lies strictly inside the plane triangle
 /// (checked with spade's exact orientation predicate), hence inside the region, so the
-/// boundary is never split. The faces are kept in a max-heap with lazy invalidation (an entry
-/// is dropped when its three corners no longer form a face); an insertion pushes only the new
-/// vertex's star, so [`AdaptiveTriangulation::insert_worst`] costs O(log n) amortised plus
-/// spade's insertion near its hint.
+/// boundary is never split. The faces' candidates are kept in a max-heap of one entry per
+/// face, updated in place (`CandidateHeap`): an insertion makes or remakes only the new
+/// vertex's star (spade never removes a face on insertion), whose entries it replaces, so
+/// [`AdaptiveTriangulation::insert_worst`] costs O(log n) plus spade's insertion near its
+/// hint.
 pub struct AdaptiveTriangulation {
     inner: RegionCdt,
-    heap: BinaryHeap<Candidate>,
-    /// Per face index, how many times an insertion remade the face ([`Self::is_current`]).
-    versions: Vec<u32>,
+    heap: CandidateHeap,
     min_spacing: f64,
     /// Every face found turned when it was made, by its corners (it may be gone since).
     turned: Vec<[FixedVertexHandle; 3]>,
@@ -780,8 +888,7 @@ impl AdaptiveTriangulation {
     fn start(inner: RegionCdt, min_spacing: f64, turned_only: bool) -> Self {
         let mut this = AdaptiveTriangulation {
             inner,
-            heap: BinaryHeap::new(),
-            versions: Vec::new(),
+            heap: CandidateHeap::default(),
             min_spacing,
             turned: Vec::new(),
             by_length: false,
@@ -816,9 +923,6 @@ impl AdaptiveTriangulation {
     /// Splits the worst face; `false` when no candidate is left.
     pub fn insert_worst(&mut self) -> bool {
         while let Some(candidate) = self.heap.pop() {
-            if !self.is_current(&candidate) {
-                continue;
-            }
             // The same split point push_face checked (the face is unchanged).
             let handles = candidate.corners.map(|h| self.inner.cdt.vertex(h));
             let corners = handles.each_ref().map(|v| v.data());
@@ -850,13 +954,9 @@ impl AdaptiveTriangulation {
             self.curved_splits |= verdict == Verdict::SplitCurved;
             let star = std::mem::take(&mut self.inner.star);
             for &face in &star {
-                if let Some(version) = self.versions.get_mut(face.index()) {
-                    *version = version.wrapping_add(1);
-                }
                 self.push_face(face);
             }
             self.inner.star = star;
-            self.drop_stale_top();
             return true;
         }
         false
@@ -938,16 +1038,6 @@ impl AdaptiveTriangulation {
             dropped
         } else {
             swapped
-        }
-    }
-
-    /// Pops stale entries so that the top (what [`Self::worst_error`] reports) is a face.
-    fn drop_stale_top(&mut self) {
-        while let Some(top) = self.heap.peek() {
-            if self.is_current(top) {
-                break;
-            }
-            self.heap.pop();
         }
     }
 
@@ -1039,20 +1129,16 @@ impl AdaptiveTriangulation {
             .then_some((plane, point))
     }
 
-    /// Whether the candidate's corners still form an inside face: whether its face was not
-    /// remade since it was pushed. An insertion never removes a face (spade reuses a split
-    /// face's handle and a flipped edge's two faces) and every face it makes or remakes has
-    /// the new vertex as a corner, so it is in the star [`Self::insert_worst`] counts as
-    /// remade: a face whose corners changed is gone for good, and one not remade is the same
-    /// (a dense counter per face, not the triangulation's memory, is read for the entries
-    /// found stale, most of those popped).
-    fn is_current(&self, candidate: &Candidate) -> bool {
-        self.versions.get(candidate.face as usize) == Some(&candidate.version)
+    /// Makes the face's candidate its entry in the heap, or removes its entry when it has
+    /// none ([`Self::candidate`]).
+    fn push_face(&mut self, face: FixedFaceHandle<InnerTag>) {
+        let candidate = self.candidate(face);
+        self.heap.set(face.index(), candidate);
     }
 
-    /// Pushes the face's candidate, unless its split point is too close to a corner or not
-    /// strictly inside it.
-    fn push_face(&mut self, face: FixedFaceHandle<InnerTag>) {
+    /// The face's candidate; none when its split point is too close to a corner or not
+    /// strictly inside it (or, mending, when it is not turned).
+    fn candidate(&mut self, face: FixedFaceHandle<InnerTag>) -> Option<Candidate> {
         let face = self.inner.cdt.face(face);
         let vertices = face.vertices();
         let corners = vertices.each_ref().map(|v| v.data());
@@ -1063,38 +1149,26 @@ impl AdaptiveTriangulation {
         if turned {
             self.turned.push(vertices.map(|v| v.fix()));
         } else if self.turned_only {
-            return;
+            return None;
         }
-        let Some((plane, point)) = self.split_point(corners) else {
-            return;
-        };
+        let (plane, point) = self.split_point(corners)?;
         let centroid = (pa + pb + pc) / 3.0;
         let error = point.distance(centroid);
         if !error.is_finite() {
-            return;
+            return None;
         }
         // A face turned against its ellipsoid (the test the assembled mesh is checked with)
         // is the worst there is: it is split before any other, whatever the tolerance.
         let error = if turned { f64::INFINITY } else { error };
         let q = to_point(plane);
-        if !face
-            .adjacent_edges()
+        face.adjacent_edges()
             .iter()
             .all(|e| e.side_query(q).is_on_left_side())
-        {
-            return;
-        }
-        let corners = vertices.map(|v| v.fix());
-        let index = face.fix().index();
-        if index >= self.versions.len() {
-            self.versions.resize(index + 1, 0);
-        }
-        self.heap.push(Candidate {
-            error,
-            corners,
-            face: index as u32,
-            version: self.versions[index],
-        });
+            .then(|| Candidate {
+                error,
+                corners: vertices.map(|v| v.fix()),
+                face: face.fix().index() as u32,
+            })
     }
 }
 
@@ -1979,11 +2053,13 @@ mod tests {
         assert_eq!(run(0.0).interior.len(), 500);
     }
 
-    /// A heap entry is current exactly when its three corners still form an inside face (the
-    /// definition; `is_current` reads a per-face counter instead): checked for every entry
-    /// after each of 300 insertions, on a region with a hole.
+    /// Every heap entry is a face as it is now: its three corners form an inside face, with
+    /// the face index the entry names, and the heap knows each entry's place; checked for
+    /// every entry after each of 300 insertions, on a region with a hole. Most inside faces
+    /// have an entry (with no minimum spacing, only those along the boundary's clearance do
+    /// not).
     #[test]
-    fn candidates_are_current_exactly_while_their_corners_form_a_face() {
+    fn every_candidate_is_a_face_as_it_is_now() {
         let e = sphere(Sign::Positive);
         let (chart, boundary, loops) = square_with_hole(&e);
         let surface = RegionSurface::new(chart);
@@ -1996,31 +2072,89 @@ mod tests {
             expected_vertices: 0,
         };
         let mut tri = AdaptiveTriangulation::new(&input, 0.0).unwrap();
-        let (mut current, mut stale) = (0, 0);
+        let mut checked = 0;
         while tri.added() < 300 && tri.insert_worst() {
-            for candidate in tri.heap.iter() {
+            let heap = &tri.heap;
+            for (place, candidate) in heap.entries.iter().enumerate() {
                 let [a, b, c] = candidate.corners;
-                let forms_a_face = tri
-                    .inner
-                    .cdt
-                    .get_edge_from_neighbors(a, b)
-                    .is_some_and(|e| {
-                        e.face().as_inner().is_some_and(|f| *f.data()) && e.next().to().fix() == c
-                    });
-                assert_eq!(tri.is_current(candidate), forms_a_face);
-                if forms_a_face {
-                    current += 1;
-                } else {
-                    stale += 1;
-                }
+                let edge = tri.inner.cdt.get_edge_from_neighbors(a, b).unwrap();
+                let face = edge.face().as_inner().unwrap();
+                assert!(*face.data());
+                assert_eq!(edge.next().to().fix(), c);
+                assert_eq!(face.fix().index(), candidate.face as usize);
+                assert_eq!(heap.places[candidate.face as usize], place as u32);
+                checked += 1;
             }
+            let with_entry = heap.places.iter().filter(|&&p| p != NO_ENTRY).count();
+            assert_eq!(with_entry, heap.entries.len());
+            let inside = tri.inner.cdt.inner_faces().filter(|f| *f.data()).count();
+            assert!(
+                2 * heap.entries.len() > inside,
+                "{} of {inside}",
+                heap.entries.len()
+            );
         }
         assert_eq!(tri.added(), 300);
-        // Both kinds were seen, many times.
-        assert!(
-            current > 1000 && stale > 1000,
-            "{current} current, {stale} stale"
-        );
+        assert!(checked > 10_000, "{checked}");
+    }
+
+    /// The candidate heap against a plain binary heap of the same candidates, rebuilt from
+    /// each face's latest candidate: the same worst candidate after every one of 20 000
+    /// random changes (a face's candidate set, replaced or removed, or the worst popped),
+    /// with ties in error broken by the corners as `Candidate`'s order says.
+    #[test]
+    fn the_candidate_heap_gives_the_worst_candidate_first() {
+        use std::collections::BinaryHeap;
+        let mut rng = SplitMix64::new(7);
+        let mut heap = CandidateHeap::default();
+        // The model: each face's candidate.
+        let mut latest: Vec<Option<Candidate>> = vec![None; 300];
+        let handle = |i: u64| FixedVertexHandle::from_index(i as usize);
+        for step in 0..20_000 {
+            let face = (rng.next_u64() % 300) as usize;
+            match rng.next_u64() % 4 {
+                0 => {
+                    let popped = heap.pop();
+                    let reference: BinaryHeap<Candidate> =
+                        latest.iter().flatten().copied().collect();
+                    let expected = reference.peek().copied();
+                    assert_eq!(
+                        popped.map(|c| c.face),
+                        expected.map(|c| c.face),
+                        "step {step}"
+                    );
+                    if let Some(c) = popped {
+                        latest[c.face as usize] = None;
+                    }
+                }
+                1 => {
+                    heap.set(face, None);
+                    latest[face] = None;
+                }
+                _ => {
+                    // Few distinct errors, so that ties are common.
+                    let error = match rng.next_u64() % 8 {
+                        0 => f64::INFINITY,
+                        k => k as f64,
+                    };
+                    let corner = rng.next_u64() % 50;
+                    let c = Candidate {
+                        error,
+                        corners: [handle(corner), handle(corner + 1), handle(face as u64)],
+                        face: face as u32,
+                    };
+                    heap.set(face, Some(c));
+                    latest[face] = Some(c);
+                }
+            }
+            let reference: BinaryHeap<Candidate> = latest.iter().flatten().copied().collect();
+            assert_eq!(heap.entries.len(), reference.len(), "step {step}");
+            assert_eq!(
+                heap.peek().map(|c| c.face),
+                reference.peek().map(|c| c.face),
+                "step {step}"
+            );
+        }
     }
 
     /// A strip along an elongated ellipsoid (radii 1, 1, 8; the decoder's charts cap
