@@ -1219,9 +1219,7 @@ fn verify(
     source: &Source,
     labels: &[u32],
 ) -> Result<(Verdict, Option<Treatment>), EncodeMeshError> {
-    use crate::remesh::assemble::{
-        problem_regions, region_faults, triangle_faults_by_region, triangle_faults_note,
-    };
+    use crate::remesh::assemble::{problem_regions, region_faults, triangle_faults_note};
     use crate::remesh::{remesh_with_charts, RemeshError, RemeshOptions};
     let source_manifold = source.manifold;
     let representation = format::decode(bytes, &format::Limits::default())?;
@@ -1320,24 +1318,23 @@ fn verify(
                 // The regions far from the source are to blame too: mended only for its
                 // faulty triangles, assimp's spider at K = 35 (raised from 29) kept a region
                 // meshed 1.5 diagonals off in every round.
-                let mut regions = problem_regions(&representation, &out, source_manifold);
+                // Where the flipped and degenerate triangles are: blamed, and told in the
+                // problem as `ellip decode` tells them.
+                let faulty = out.faulty_regions(&representation);
+                let mut regions = problem_regions(&out, &faulty, source_manifold);
                 for &(region, _) in &far {
                     if !regions.contains(&region) {
                         regions.push(region);
                     }
                 }
-                // Where the flipped and degenerate triangles are, as `ellip decode` says it.
-                let by_region = if c.flipped + c.degenerate > 0 {
-                    let counted =
-                        triangle_faults_by_region(&representation, &out.mesh, &out.face_regions);
-                    triangle_faults_note(&counted)
-                } else {
-                    String::new()
-                };
                 Verdict::Dirty(
                     faults,
                     blame(regions),
-                    format!("decodes with {}{by_region}", c.faults()),
+                    format!(
+                        "decodes with {}{}",
+                        c.faults(),
+                        triangle_faults_note(&faulty)
+                    ),
                 )
             }
         };

@@ -13,7 +13,7 @@ use ellip::export::{write_mesh, MeshData};
 use ellip::format::{decode, Limits};
 use ellip::import::MeshFormat;
 use ellip::preview::palette::palette;
-use ellip::remesh::assemble::{triangle_faults_by_region, triangle_faults_note, BUDGET_MET};
+use ellip::remesh::assemble::{triangle_faults_note, BUDGET_MET};
 use ellip::remesh::{remesh, RemeshOptions, Remeshed, Scheme};
 use ellip::representation::Representation;
 use glam::DVec3;
@@ -148,7 +148,7 @@ pub struct DecodeReport {
     /// encloses nothing ([`Remeshed::faceless_regions`]), in increasing order.
     empty_regions: Vec<u32>,
     /// The regions with flipped or degenerate triangles, each with its counts, in
-    /// increasing order ([`triangle_faults_by_region`]; they add up to
+    /// increasing order ([`ellip::remesh::Remeshed::faulty_regions`]; they add up to
     /// `flipped_triangles` and `degenerate_triangles`).
     faulty_regions: Vec<FaultyRegion>,
     colored: bool,
@@ -247,11 +247,7 @@ pub fn remesh_and_write(
         write_mesh(output, &data)?;
     }
     let check = remeshed.check;
-    let faulty = if check.flipped + check.degenerate > 0 {
-        triangle_faults_by_region(rep, &remeshed.mesh, &remeshed.face_regions)
-    } else {
-        Vec::new()
-    };
+    let faulty = remeshed.faulty_regions(rep);
     if !quiet && !check.is_clean() {
         eprintln!(
             "warning: the mesh is not clean: {}{}",

@@ -2456,17 +2456,20 @@ fn face_faults<'a>(
 }
 
 /// The regions to blame for what [`check_mesh`] found wrong with a remeshed representation,
-/// in increasing order: the regions of degenerate and flipped triangles, and of the
+/// in increasing order: the regions of degenerate and flipped triangles (`faulty`,
+/// [`Remeshed::faulty_regions`]), and of the
 /// triangles on edges that are not manifold (unless the source is not either:
 /// `source_manifold`, see [`MeshCheck::is_clean_from`]), on the border (when the
 /// representation has no border arcs), or run the same way by their two triangles. Empty
 /// when the mesh is clean, or when its faults (a vertex with two fans of triangles) name no
 /// edge.
-pub fn problem_regions(rep: &Representation, out: &Remeshed, source_manifold: bool) -> Vec<u32> {
+pub fn problem_regions(
+    out: &Remeshed,
+    faulty: &[RegionTriangleFaults],
+    source_manifold: bool,
+) -> Vec<u32> {
     let mesh = &out.mesh;
-    let mut blamed: std::collections::BTreeSet<u32> = face_faults(rep, mesh, &out.face_regions)
-        .map(|(r, _)| r)
-        .collect();
+    let mut blamed: std::collections::BTreeSet<u32> = faulty.iter().map(|f| f.region).collect();
     let c = out.check;
     if !c.is_sound_from(source_manifold) {
         let t = mesh.topology();

@@ -232,6 +232,16 @@ impl Remeshed {
             .map(|(r, _)| r)
             .collect()
     }
+
+    /// Where its flipped and degenerate triangles are
+    /// ([`assemble::triangle_faults_by_region`] of `rep`, the representation it was made
+    /// from); empty, without a walk over the mesh, when its check found none.
+    pub fn faulty_regions(&self, rep: &Representation) -> Vec<assemble::RegionTriangleFaults> {
+        if self.check.flipped + self.check.degenerate == 0 {
+            return Vec::new();
+        }
+        assemble::triangle_faults_by_region(rep, &self.mesh, &self.face_regions)
+    }
 }
 
 /// Why a representation could not be remeshed.
