@@ -292,7 +292,8 @@ impl RegionChart {
     /// the best one outside the region is then improved by a local pattern search. A
     /// candidate is outside the region exactly when the region's projected loops, oriented
     /// with the region on their left in the plane, enclose a positive total signed area
-    /// (with the pole inside, the bounded side is the complement and the sum is negative).
+    /// (with the pole inside, the bounded side is the complement and the sum is negative);
+    /// edges longer than 0.1 rad are measured along their arcs, as pieces of that length.
     ///
     /// Errors ([`RemeshError::Region`]): the ellipsoid is not valid, a point is not finite,
     /// a loop has fewer than three distinct directions on the unit sphere, or no candidate
@@ -583,7 +584,6 @@ fn fibonacci_directions(n: usize) -> Vec<DVec3> {
 }
 
 /// The angle between two unit vectors, accurate for small and large angles.
-#[cfg(test)]
 fn angle_between(a: DVec3, b: DVec3) -> f64 {
     a.cross(b).length().atan2(a.dot(b))
 }
@@ -765,19 +765,66 @@ fn doubled_signed_area(polygon: impl IntoIterator<Item = DVec2>) -> f64 {
     sum
 }
 
-/// Whether `pole` lies outside the region bounded by `sphere_loops` (region on the left, seen
-/// from outside): then the region's image in the plane is bounded and its loops, region on
-/// the left, enclose a positive total area; with the pole inside, the bounded side is the
+/// Whether `pole` lies outside the region bounded by the loops of `area` (made by
+/// [`AreaLoops::new`]): then the region's image in the plane is bounded and its loops, region
+/// on the left, enclose a positive total area; with the pole inside, the bounded side is the
 /// complement and the total is negative.
-fn is_outside(ellipsoid: &Ellipsoid, sphere_loops: &[Vec<DVec3>], pole: DVec3) -> bool {
+fn is_outside(ellipsoid: &Ellipsoid, area: &AreaLoops, pole: DVec3) -> bool {
     let chart = RegionChart::with_pole(ellipsoid, pole);
-    // The loops as project_loops gives them, without making them (the pole search asks this
-    // of many poles).
-    let total: f64 = sphere_loops
+    let total: f64 = area
+        .loops
         .iter()
-        .map(|l| doubled_signed_area(l.iter().rev().map(|&u| chart.sphere_to_plane(u))))
+        .map(|l| doubled_signed_area(l.iter().map(|&u| chart.sphere_to_plane(u))))
         .sum();
     total.is_finite() && total > 0.0
+}
+
+/// Longest edge (angle on the unit sphere, radians) whose chord stands for its arc in
+/// [`is_outside`]: a chord of 0.1 strays at most 1/800 from its arc (θ²/8).
+const MAX_AREA_EDGE: f64 = 0.1;
+
+/// A region's unit-sphere loops as [`is_outside`] measures them, made once for the many poles
+/// [`choose_pole`] tries: in reverse order, as [`project_loops`] takes them, and with every
+/// edge longer than [`MAX_AREA_EDGE`] split into equal pieces along its great-circle arc.
+///
+/// The region's edges are great-circle arcs, which the projection maps to circular arcs, not
+/// to the chords between their ends: a pole near a long edge may lie between the two, and
+/// the chords' area gives it the wrong side (a three-point hole with edges of 60–90°, a
+/// pole 40° beyond one of them). A loop of shorter edges is measured as it is. (An edge
+/// between antipodes, with no one arc, is left whole.)
+struct AreaLoops {
+    loops: Vec<Vec<DVec3>>,
+}
+
+impl AreaLoops {
+    fn new(sphere_loops: &[Vec<DVec3>]) -> AreaLoops {
+        let cos_max = MAX_AREA_EDGE.cos();
+        let loops = sphere_loops
+            .iter()
+            .map(|l| {
+                let mut out = Vec::with_capacity(l.len());
+                for (i, &a) in l.iter().enumerate().rev() {
+                    let b = if i == 0 { l[l.len() - 1] } else { l[i - 1] };
+                    out.push(a);
+                    if a.dot(b) >= cos_max {
+                        continue;
+                    }
+                    let angle = angle_between(a, b);
+                    let sin = angle.sin();
+                    if sin <= 1e-9 {
+                        continue;
+                    }
+                    let pieces = (angle / MAX_AREA_EDGE).ceil() as usize;
+                    out.extend((1..pieces).map(|k| {
+                        let t = k as f64 / pieces as f64;
+                        ((a * ((1.0 - t) * angle).sin() + b * (t * angle).sin()) / sin).normalize()
+                    }));
+                }
+                out
+            })
+            .collect();
+        AreaLoops { loops }
+    }
 }
 
 /// Boundary points beyond which candidate poles are ranked against a subsample of the loops
@@ -848,6 +895,7 @@ fn choose_pole(
     walk: PoleWalk,
 ) -> Option<(DVec3, f64)> {
     let all = SphereEdges::new(loops);
+    let area = AreaLoops::new(loops);
     // Up to SCORING_POINTS boundary points the coarse edges are all of them.
     let scored_in_full = loops.iter().map(Vec::len).sum::<usize>() <= SCORING_POINTS;
     let decimated;
@@ -866,7 +914,7 @@ fn choose_pole(
         } else {
             all.distance(c)
         };
-        (exact >= MIN_CLEARANCE && (outside || is_outside(ellipsoid, loops, c))).then_some(exact)
+        (exact >= MIN_CLEARANCE && (outside || is_outside(ellipsoid, &area, c))).then_some(exact)
     };
     let mut candidates = fibonacci_directions(POLE_CANDIDATES);
     let mean: DVec3 = loops.iter().flatten().copied().sum();
@@ -900,7 +948,7 @@ fn choose_pole(
     while let Some(top) = ranked.pop() {
         let c = candidates[top.index];
         if top.bound {
-            if is_outside(ellipsoid, loops, c) {
+            if is_outside(ellipsoid, &area, c) {
                 ranked.push(Ranked {
                     score: score(c),
                     bound: false,
@@ -1583,6 +1631,42 @@ mod tests {
             assert!(!chart.contains(e.from_unit_sphere(inside_hole)), "{size}");
             assert!(chart.contains(e.from_unit_sphere(-axis)), "{size}");
             assert!(chart.contains(e.from_unit_sphere(t1)), "{size}");
+        }
+    }
+
+    /// A hole of three corners with edges of 58°, 64° and 88° (the opening of a small box
+    /// in `snowden.obj`, region 10): the pole lies in the hole as its great-circle edges bound
+    /// it, not just beyond its longest edge, where the chords between the projected corners
+    /// put it before [`MAX_AREA_EDGE`] (40° into the region).
+    #[test]
+    fn a_pole_stays_in_a_hole_of_long_edges() {
+        for sign in [Sign::Positive, Sign::Negative] {
+            let e = tilted(sign);
+            // Seen from outside, the region on the loop's left (inside it, negative).
+            let mut corners = [
+                DVec3::new(0.677, 0.729, -0.105),
+                DVec3::new(0.751, -0.659, -0.027),
+                DVec3::new(0.732, 0.009, 0.681),
+            ]
+            .map(DVec3::normalize);
+            if sign == Sign::Negative {
+                corners.reverse();
+            }
+            let hole: Vec<DVec3> = corners.iter().map(|&u| e.from_unit_sphere(u)).collect();
+            let chart = RegionChart::new(10, &e, &[hole]).unwrap();
+            // In the hole: on the corners' side of every edge's great circle.
+            let pole = chart.pole();
+            let mut centre = DVec3::ZERO;
+            for i in 0..3 {
+                let (a, b, c) = (corners[i], corners[(i + 1) % 3], corners[(i + 2) % 3]);
+                let n = a.cross(b);
+                assert!(n.dot(pole) * n.dot(c) > 0.0, "{sign:?}: pole {pole}");
+                centre += c;
+            }
+            // The incircle's radius is about 0.37 rad.
+            assert!(chart.clearance() > 0.3, "{}", chart.clearance());
+            assert!(!chart.contains(e.from_unit_sphere(centre.normalize())));
+            assert!(chart.contains(e.from_unit_sphere(-centre.normalize())));
         }
     }
 }
