@@ -783,6 +783,12 @@ fn is_outside(ellipsoid: &Ellipsoid, area: &AreaLoops, pole: DVec3) -> bool {
 /// [`is_outside`]: a chord of 0.1 strays at most 1/800 from its arc (θ²/8).
 const MAX_AREA_EDGE: f64 = 0.1;
 
+/// Most points [`AreaLoops`] adds to a region's loops: on a boundary whose long edges add
+/// up to more than this many pieces of [`MAX_AREA_EDGE`] (a hostile file's loops of
+/// thousands of edges across the sphere), the pieces are made longer, so that the pole's
+/// test costs at most a few times what the loops alone cost.
+const MAX_AREA_PIECES: f64 = 4096.0;
+
 /// A region's unit-sphere loops as [`is_outside`] measures them, made once for the many poles
 /// [`choose_pole`] tries: in reverse order, as [`project_loops`] takes them, and with every
 /// edge longer than [`MAX_AREA_EDGE`] split into equal pieces along its great-circle arc.
@@ -799,22 +805,38 @@ struct AreaLoops {
 impl AreaLoops {
     fn new(sphere_loops: &[Vec<DVec3>]) -> AreaLoops {
         let cos_max = MAX_AREA_EDGE.cos();
+        // Each edge from a loop's corner `i` to the one before it, as the loop is measured.
+        let edges = |l: &[DVec3]| -> Vec<(DVec3, DVec3)> {
+            (0..l.len())
+                .rev()
+                .map(|i| (l[i], if i == 0 { l[l.len() - 1] } else { l[i - 1] }))
+                .collect()
+        };
+        let long = |a: DVec3, b: DVec3| -> Option<(f64, f64)> {
+            if a.dot(b) >= cos_max {
+                return None;
+            }
+            let angle = angle_between(a, b);
+            let sin = angle.sin();
+            (sin > 1e-9).then_some((angle, sin))
+        };
+        let total: f64 = sphere_loops
+            .iter()
+            .flat_map(|l| edges(l))
+            .filter_map(|(a, b)| long(a, b))
+            .map(|(angle, _)| angle)
+            .sum();
+        let piece = MAX_AREA_EDGE.max(total / MAX_AREA_PIECES);
         let loops = sphere_loops
             .iter()
             .map(|l| {
                 let mut out = Vec::with_capacity(l.len());
-                for (i, &a) in l.iter().enumerate().rev() {
-                    let b = if i == 0 { l[l.len() - 1] } else { l[i - 1] };
+                for (a, b) in edges(l) {
                     out.push(a);
-                    if a.dot(b) >= cos_max {
+                    let Some((angle, sin)) = long(a, b) else {
                         continue;
-                    }
-                    let angle = angle_between(a, b);
-                    let sin = angle.sin();
-                    if sin <= 1e-9 {
-                        continue;
-                    }
-                    let pieces = (angle / MAX_AREA_EDGE).ceil() as usize;
+                    };
+                    let pieces = (angle / piece).ceil() as usize;
                     out.extend((1..pieces).map(|k| {
                         let t = k as f64 / pieces as f64;
                         ((a * ((1.0 - t) * angle).sin() + b * (t * angle).sin()) / sin).normalize()
@@ -1667,6 +1689,58 @@ mod tests {
             assert!(chart.clearance() > 0.3, "{}", chart.clearance());
             assert!(!chart.contains(e.from_unit_sphere(centre.normalize())));
             assert!(chart.contains(e.from_unit_sphere(-centre.normalize())));
+        }
+    }
+
+    /// [`AreaLoops`] splits each long edge into pieces of at most [`MAX_AREA_EDGE`] along its
+    /// great circle, reversed as the plane loops are; a boundary of thousands of edges of 170°
+    /// (a hostile file's) gets at most [`MAX_AREA_PIECES`] more points.
+    #[test]
+    fn area_loops_follow_the_arcs_within_a_budget() {
+        let corners = [DVec3::X, DVec3::Y, DVec3::new(0.0, 0.6, 0.8)];
+        let area = AreaLoops::new(&[corners.to_vec()]);
+        let l = &area.loops[0];
+        // Reversed, from the last corner: edges of 53.13°, 90° and 90°, in 10, 16 and 16
+        // pieces.
+        assert_eq!(l.len(), 10 + 16 + 16);
+        assert_eq!(l[0], corners[2]);
+        let mut corner_at = vec![0];
+        for (k, &u) in l.iter().enumerate() {
+            assert!((u.length() - 1.0).abs() < 1e-12);
+            let next = l[(k + 1) % l.len()];
+            assert!(angle_between(u, next) <= MAX_AREA_EDGE + 1e-12);
+            if corners.contains(&u) && k > 0 {
+                corner_at.push(k);
+            }
+        }
+        // The corners in reverse order, each piece on its edge's great circle.
+        assert_eq!(corner_at, [0, 10, 26]);
+        assert_eq!(l[10], corners[1]);
+        assert_eq!(l[26], corners[0]);
+        for (from, to, (a, b)) in [
+            (0, 10, (corners[2], corners[1])),
+            (10, 26, (corners[1], corners[0])),
+            (26, 42, (corners[0], corners[2])),
+        ] {
+            let n = a.cross(b).normalize();
+            for &u in &l[from..to] {
+                assert!(u.dot(n).abs() < 1e-12);
+            }
+        }
+
+        for n in [2_000, 20_000] {
+            let zigzag: Vec<DVec3> = (0..n)
+                .map(|i| {
+                    let phi = std::f64::consts::TAU * i as f64 / n as f64;
+                    let lat: f64 = if i % 2 == 0 { 1.48 } else { -1.48 };
+                    DVec3::new(phi.cos() * lat.cos(), phi.sin() * lat.cos(), lat.sin())
+                })
+                .collect();
+            let area = AreaLoops::new(&[zigzag]);
+            let added = area.loops[0].len() - n;
+            // 2 000 edges: pieces of 1.45 rad, three an edge.
+            assert!(added <= MAX_AREA_PIECES as usize, "{n}: {added}");
+            assert_eq!(added > 0, n == 2_000, "{n}: {added}");
         }
     }
 }
